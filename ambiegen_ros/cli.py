@@ -1,0 +1,248 @@
+"""`ambiegen`: the command line over the ROS-free core (search, evaluate, show).
+
+Bad input (malformed JSON, unknown problem or attribute, out-of-domain values, NaN, wrong types,
+bad options) exits with status 2 and one line naming the field and what is allowed; never a
+traceback, never a silently repaired scenario.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import secrets
+import sys
+import time
+from dataclasses import fields
+from pathlib import Path
+from typing import Any, Callable
+
+from . import __version__
+from .core.attributes import ScenarioError
+from .core.scenario import Scenario
+from .core.search import ALGORITHMS, REFERENCES, Search, SearchSettings
+from .problems import PROBLEM_NAMES, get_problem
+
+EXIT_BAD_INPUT = 2
+
+
+class BadInput(Exception):
+    """A user error reported as one line with exit status 2."""
+
+
+# --- shared helpers (also used by later subcommands) -----------------------------------------
+def load_yaml_config(path: str | None) -> dict[str, Any]:
+    """A run config file: search settings at the top level, problem numbers under problem_config."""
+    if not path:
+        return {}
+    import yaml
+
+    try:
+        data = yaml.safe_load(Path(path).read_text()) or {}
+    except FileNotFoundError:
+        raise BadInput(f"--config: no such file {path}")
+    except yaml.YAMLError as exc:
+        raise BadInput(f"--config: malformed YAML in {path}: {exc}")
+    if not isinstance(data, dict):
+        raise BadInput(f"--config: {path} must hold a mapping")
+    allowed = {f.name for f in fields(SearchSettings)} | {"problem", "problem_config"}
+    unknown = set(data) - allowed
+    if unknown:
+        raise BadInput(f"--config: unknown key {sorted(unknown)[0]!r} (allowed: {', '.join(sorted(allowed))})")
+    return data
+
+
+def load_scenario_file(path: str) -> tuple[Any, Scenario]:
+    """Read and validate a scenario JSON file -> (problem, scenario)."""
+    try:
+        text = Path(path).read_text()
+    except OSError as exc:
+        raise BadInput(f"{path}: cannot read ({exc.strerror})")
+    data = Scenario.parse_json(text)
+    problem = get_problem(data.get("problem") if isinstance(data.get("problem"), str) else repr(data.get("problem")))
+    return problem, problem.parse(data)
+
+
+def build_search(args: argparse.Namespace) -> tuple[Any, SearchSettings]:
+    """Problem + settings from --config and the flags (flags win)."""
+    file_cfg = load_yaml_config(getattr(args, "config", None))
+    problem_name = args.problem or file_cfg.get("problem")
+    if not problem_name:
+        raise BadInput(f"--problem is required (allowed: {'|'.join(PROBLEM_NAMES)})")
+    problem_config = file_cfg.get("problem_config") or {}
+    if not isinstance(problem_config, dict):
+        raise BadInput("--config: problem_config must be a mapping")
+    try:
+        problem = get_problem(problem_name, problem_config)
+    except TypeError as exc:
+        raise BadInput(f"--config: problem_config: {exc}")
+    values = {k: v for k, v in file_cfg.items() if k not in ("problem", "problem_config")}
+    for name in ("algorithm", "evaluations", "time_budget", "population", "offspring", "seed", "reference"):
+        value = getattr(args, name, None)
+        if value is not None:
+            values[name] = value
+    if "seed" not in values:
+        values["seed"] = secrets.randbelow(2**31)
+    if args_has_budget(args):
+        # a budget flag replaces the file's budget entirely
+        values["evaluations"] = getattr(args, "evaluations", None)
+        values["time_budget"] = getattr(args, "time_budget", None)
+    try:
+        settings = SearchSettings(**values).resolved(problem)
+    except (TypeError, ValueError) as exc:
+        raise BadInput(str(exc))
+    return problem, settings
+
+
+def args_has_budget(args: argparse.Namespace) -> bool:
+    return getattr(args, "evaluations", None) is not None or getattr(args, "time_budget", None) is not None
+
+
+class Progress:
+    """A one-line progress display on a terminal (stderr); silent when not a TTY."""
+
+    def __init__(self, label: str, enabled: bool | None = None):
+        self.label = label
+        self.enabled = sys.stderr.isatty() if enabled is None else enabled
+        self._last = 0.0
+
+    def __call__(self, search: Search) -> None:
+        if not self.enabled:
+            return
+        now = time.monotonic()
+        if now - self._last < 0.2 and not search.done():
+            return
+        self._last = now
+        s = search.settings
+        if s.evaluations is not None:
+            frac = search.evaluations / s.evaluations
+            budget = f"{search.evaluations}/{s.evaluations} evals"
+        else:
+            frac = min(search.elapsed / s.time_budget, 1.0)
+            budget = f"{search.evaluations} evals, {search.elapsed:.0f}/{s.time_budget:.0f} s"
+        bar = "#" * int(frac * 24)
+        last = search.history[-1] if search.history else {"front_size": 0}
+        sys.stderr.write(
+            f"\r{self.label} [{bar:<24}] {budget}  best F1 {search.best_f1:.3f}  front {last['front_size']}   "
+        )
+        sys.stderr.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            sys.stderr.write("\n")
+
+
+# --- subcommands -----------------------------------------------------------------------------
+def cmd_search(args: argparse.Namespace) -> int:
+    from .core.runs import write_run
+    from .viz.runs import plot_run
+
+    problem, settings = build_search(args)
+    label = f"{problem.name}/{settings.algorithm} seed {settings.seed}"
+    progress = Progress(label, enabled=None if not args.quiet else False)
+    result = Search(problem, settings).run(progress=progress)
+    progress.close()
+    out = Path(args.out)
+    write_run(out, problem, result)
+    pictures = [] if args.no_plots else plot_run(out)
+    front = "Pareto front" if settings.algorithm == "nsga2" else "suite"
+    print(
+        f"{label}: {result.evaluations} evaluations in {result.elapsed:.1f} s, best F1 {result.best_f1:.3f} "
+        f"({problem.f1_label}), {front} of {len(result.suite)} (diversity {result.diversity:.2f}) -> {out}"
+        + (f" [{len(pictures)} pictures]" if pictures else "")
+    )
+    return 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    problem, scenario = load_scenario_file(args.scenario)
+    row = problem.evaluate_scenarios([scenario]).row(0)
+    out = {"problem": problem.name, **row}
+    if args.json:
+        print(json.dumps(out))
+    else:
+        status = "valid" if out["valid"] else f"INVALID ({out['reason']})"
+        print(f"{problem.name}: {len(scenario.elements)} elements, {status}, F1 = {out['f1']:.4f} ({problem.f1_label})")
+        for key, value in out.items():
+            if key not in ("problem", "valid", "reason", "f1"):
+                print(f"  {key}: {value}")
+    return 0
+
+
+def cmd_show(args: argparse.Namespace) -> int:
+    from .viz import save_scenario_plot
+    from .viz.runs import plot_run
+
+    target = Path(args.target)
+    if target.is_dir():
+        if not (target / "suite.json").exists():
+            raise BadInput(f"{target}: not a run directory (no suite.json)")
+        written = plot_run(target, out=Path(args.output) if args.output else None)
+        print("\n".join(str(p) for p in written))
+        return 0
+    problem, scenario = load_scenario_file(str(target))
+    output = Path(args.output or target.with_suffix(".png"))
+    save_scenario_plot(problem, scenario, output)
+    print(output)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="ambiegen",
+        description="AmbieGen: evolutionary search for environments in which autonomous systems fail.",
+    )
+    parser.add_argument("--version", action="version", version=f"ambiegen-ros {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    p = sub.add_parser("search", help="run a search with the surrogate model and write a run directory")
+    p.add_argument("--problem", choices=PROBLEM_NAMES, help="case study")
+    p.add_argument("--algorithm", choices=ALGORITHMS, help="ga (single objective), nsga2 (F1 + diversity), random")
+    budget = p.add_mutually_exclusive_group()
+    budget.add_argument("--evaluations", type=int, help="evaluation budget (default: the paper's)")
+    budget.add_argument("--time-budget", type=float, metavar="SECONDS", help="wall-clock budget instead")
+    p.add_argument("--population", type=int, help="population size (default: the paper's)")
+    p.add_argument("--offspring", type=int, help="offspring per generation (default: the paper's)")
+    p.add_argument("--seed", type=int, help="random seed (default: drawn and recorded)")
+    p.add_argument("--reference", choices=REFERENCES, help="F2 reference: parent (paper) or nearest front member")
+    p.add_argument("--config", metavar="FILE.yaml", help="search settings and problem_config overrides")
+    p.add_argument("--out", required=True, metavar="DIR", help="run directory to write")
+    p.add_argument("--no-plots", action="store_true", help="skip the pictures")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_search)
+
+    p = sub.add_parser("evaluate", help="validity and surrogate F1 of one scenario JSON")
+    p.add_argument("scenario", metavar="SCENARIO.json")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=cmd_evaluate)
+
+    p = sub.add_parser("show", help="picture of a scenario, or of a run directory (convergence + best scenarios)")
+    p.add_argument("target", metavar="SCENARIO.json|RUN_DIR")
+    p.add_argument("-o", "--output", metavar="FILE.png", help="output picture (run dirs: a file prefix)")
+    p.set_defaults(func=cmd_show)
+
+    for register in EXTRA_COMMANDS:
+        register(sub)
+    return parser
+
+
+EXTRA_COMMANDS: list[Callable[[Any], None]] = []
+"""Subcommand registrars added by other modules (ROS campaign, replay, execute)."""
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return EXIT_BAD_INPUT
+    try:
+        return int(args.func(args) or 0)
+    except (BadInput, ScenarioError) as exc:
+        print(f"ambiegen {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"ambiegen {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""ROS-free search engine: scenario representation, operators, diversity, search loop, run files."""

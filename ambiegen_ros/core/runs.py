@@ -1,0 +1,91 @@
+"""Run directories: ``config.json``, ``suite.json``, ``history.csv`` (pictures come from ``viz``).
+
+``suite.json`` holds nothing that depends on the clock, so the same seed and config give a
+byte-identical file; timings live in ``config.json`` (``finished``) and ``history.csv``.
+"""
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import platform
+import sys
+from datetime import datetime, timezone
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+from .. import __version__
+from ..problems.base import Problem
+from .search import SearchResult
+
+DEPENDENCIES = ("pymoo", "numpy", "scipy", "shapely", "matplotlib", "PyYAML", "mcap", "rosbags", "cyclonedds")
+HISTORY_COLUMNS = ("evaluations", "elapsed_s", "best_f1", "mean_f1", "front_size", "risky")
+
+
+def versions() -> dict[str, str]:
+    """Package and dependency versions, recorded in every output for reproducibility."""
+    out = {"ambiegen_ros": __version__, "python": platform.python_version()}
+    for name in DEPENDENCIES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def run_config(problem: Problem, result_or_settings: Any, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+    settings = getattr(result_or_settings, "settings", result_or_settings)
+    config = {
+        "problem": problem.name,
+        "seed": settings.seed,
+        "search": dataclasses.asdict(settings),
+        "problem_config": problem.config_dict(),
+        "versions": versions(),
+        "command": sys.argv,
+    }
+    if extra:
+        config.update(extra)
+    return config
+
+
+def suite_document(problem: Problem, result: SearchResult) -> dict[str, Any]:
+    return {
+        "problem": problem.name,
+        "algorithm": result.settings.algorithm,
+        "seed": result.settings.seed,
+        "evaluations": result.evaluations,
+        "alpha": problem.alpha,
+        "best_f1": result.best_f1,
+        "diversity": result.diversity,
+        "suite": result.suite,
+    }
+
+
+def write_run(out_dir: Path, problem: Problem, result: SearchResult, extra: dict[str, Any] | None = None) -> dict[str, Path]:
+    """Write the run's files; returns their paths by name."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    config = run_config(problem, result, extra)
+    config["finished"] = datetime.now(timezone.utc).isoformat(timespec="seconds")
+    config["elapsed_s"] = round(result.elapsed, 3)
+    paths = {"config": out_dir / "config.json", "suite": out_dir / "suite.json", "history": out_dir / "history.csv"}
+    paths["config"].write_text(json.dumps(config, indent=2) + "\n")
+    paths["suite"].write_text(json.dumps(suite_document(problem, result), indent=2) + "\n")
+    with paths["history"].open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=HISTORY_COLUMNS)
+        writer.writeheader()
+        writer.writerows(result.history)
+    return paths
+
+
+def read_run(run_dir: Path) -> dict[str, Any]:
+    """Load a run directory back (for ``ambiegen show`` and tests)."""
+    run_dir = Path(run_dir)
+    with (run_dir / "history.csv").open() as fh:
+        history = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(fh)]
+    return {
+        "config": json.loads((run_dir / "config.json").read_text()),
+        "suite": json.loads((run_dir / "suite.json").read_text()),
+        "history": history,
+    }

@@ -1,0 +1,298 @@
+"""The AmbieGen search: GA (SO), NSGA-II (MO) and random search, driven by ask/tell.
+
+``Search.ask()`` hands out genome rows to evaluate and ``Search.tell()`` takes their evaluation,
+so the same loop runs with the in-process surrogate (``Search.run``) or with results that arrive
+later from simulation nodes (the ROS generator's ``in_the_loop`` mode). pymoo does selection,
+survival and bookkeeping; our operators (``core.operators``) do the variation.
+
+Objectives (pymoo minimises, users see positive values): SO minimises -F1; MO minimises
+(-F1, -F2) subject to F1 > alpha (``G = alpha - F1 <= 0``). F2 is the Jaccard distance to the
+individual's parent (``reference="parent"``, the paper) or to the nearest member of the current
+non-dominated front (``reference="front"``). Members of the initial population have no parent:
+their F2 is the distance to the nearest other member of that population (written in the docs).
+
+The budget counts every evaluation, the initial population included; the last generation is
+truncated so a run never evaluates more than ``evaluations`` scenarios.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+from pymoo.algorithms.moo.nsga2 import NSGA2
+from pymoo.algorithms.soo.nonconvex.ga import GA
+from pymoo.core.evaluator import Evaluator
+from pymoo.core.population import Population
+from pymoo.core.termination import NoTermination
+from pymoo.problems.static import StaticProblem
+from pymoo.util.nds.non_dominated_sorting import NonDominatedSorting
+
+from ..problems.base import Evaluation, Problem
+from .diversity import jaccard_distance, mean_pairwise_diversity, nearest_distance, pairwise_jaccard
+from .operators import (
+    CaseStudyProblem,
+    OnePointCrossover,
+    ScenarioDuplicateElimination,
+    ScenarioMutation,
+    ScenarioSampling,
+)
+
+ALGORITHMS = ("ga", "nsga2", "random")
+REFERENCES = ("parent", "front")
+
+
+@dataclass
+class SearchSettings:
+    """Everything that defines a run (recorded in ``config.json``). ``None`` = problem default."""
+
+    algorithm: str = "nsga2"
+    evaluations: int | None = None
+    time_budget: float | None = None
+    population: int | None = None
+    offspring: int | None = None
+    seed: int = 0
+    reference: str = "parent"
+    mutation_rate: float = 0.4
+    crossover_rate: float = 1.0
+    suite_size: int = 10
+
+    def resolved(self, problem: Problem) -> "SearchSettings":
+        """Fill unset values from the problem's paper budget and check them."""
+        if self.algorithm not in ALGORITHMS:
+            raise ValueError(f"algorithm: unknown {self.algorithm!r} (allowed: {'|'.join(ALGORITHMS)})")
+        if self.reference not in REFERENCES:
+            raise ValueError(f"reference: unknown {self.reference!r} (allowed: {'|'.join(REFERENCES)})")
+        budget = problem.paper_budget
+        out = SearchSettings(**asdict(self))
+        if out.evaluations is None and out.time_budget is None:
+            out.evaluations = budget.evaluations
+        out.population = out.population or budget.population
+        out.offspring = out.offspring or budget.offspring
+        for name in ("population", "offspring"):
+            if getattr(out, name) < 2:
+                raise ValueError(f"{name}: must be >= 2")
+        if out.evaluations is not None and out.evaluations < 1:
+            raise ValueError("evaluations: must be >= 1")
+        if out.time_budget is not None and out.time_budget <= 0:
+            raise ValueError("time_budget: must be > 0 seconds")
+        return out
+
+
+@dataclass
+class SearchResult:
+    """What a run leaves: the suite (best scenarios with F1/F2), history rows and totals."""
+
+    settings: SearchSettings
+    suite: list[dict[str, Any]]
+    history: list[dict[str, float]]
+    evaluations: int
+    elapsed: float
+    best_f1: float
+    diversity: float
+    extras: dict[str, Any] = field(default_factory=dict)
+
+
+def non_dominated(f1: np.ndarray, f2: np.ndarray, feasible: np.ndarray) -> np.ndarray:
+    """Indices of the feasible points not dominated in (max F1, max F2)."""
+    idx = np.flatnonzero(feasible)
+    if len(idx) == 0:
+        return idx
+    front = NonDominatedSorting().do(np.column_stack([-f1[idx], -f2[idx]]), only_non_dominated_front=True)
+    return idx[np.sort(front)]
+
+
+class Search:
+    """One run of one algorithm on one problem; ask/tell or ``run()`` with the surrogate."""
+
+    def __init__(self, problem: Problem, settings: SearchSettings):
+        self.problem = problem
+        self.settings = settings.resolved(problem)
+        self.codec = problem.codec
+        self.evaluations = 0
+        self.history: list[dict[str, float]] = []
+        self.best_f1 = 0.0
+        self._start = time.perf_counter()
+        self._pending: Population | np.ndarray | None = None
+        s = self.settings
+        if s.algorithm == "random":
+            self._rng = np.random.default_rng(s.seed)
+            self._archive = Population.empty()
+            self._algorithm = None
+            return
+        mo = s.algorithm == "nsga2"
+        self._pymoo_problem = CaseStudyProblem(problem, n_obj=2 if mo else 1, n_ieq_constr=1 if mo else 0)
+        operators = dict(
+            pop_size=s.population,
+            n_offsprings=s.offspring,
+            sampling=ScenarioSampling(),
+            crossover=OnePointCrossover(prob=s.crossover_rate),
+            mutation=ScenarioMutation(prob=s.mutation_rate),
+            eliminate_duplicates=ScenarioDuplicateElimination(),
+        )
+        self._algorithm = NSGA2(**operators) if mo else GA(**operators)
+        self._algorithm.setup(self._pymoo_problem, termination=NoTermination(), seed=s.seed, verbose=False)
+
+    # --- budget --------------------------------------------------------------------------
+    @property
+    def elapsed(self) -> float:
+        return time.perf_counter() - self._start
+
+    def remaining(self) -> int | None:
+        """Evaluations left (None when only a time budget is set)."""
+        if self.settings.evaluations is None:
+            return None
+        return max(self.settings.evaluations - self.evaluations, 0)
+
+    def done(self) -> bool:
+        s = self.settings
+        if s.evaluations is not None and self.evaluations >= s.evaluations:
+            return True
+        if s.time_budget is not None and self.elapsed >= s.time_budget:
+            return True
+        return False
+
+    # --- ask / tell ----------------------------------------------------------------------
+    def ask(self) -> np.ndarray | None:
+        """Genome rows to evaluate next (None when the budget is spent or nothing new can be bred)."""
+        if self._pending is not None:
+            raise RuntimeError("ask() called twice without tell()")
+        if self.done():
+            return None
+        remaining = self.remaining()
+        if self._algorithm is None:
+            n = self.settings.population if remaining is None else min(self.settings.population, remaining)
+            rows = self.problem.sample_rows(n, self._rng)
+            self._pending = Population.new("X", rows)
+        else:
+            pop = self._algorithm.ask()
+            if pop is None or len(pop) == 0:
+                return None
+            if remaining is not None and len(pop) > remaining:
+                pop = pop[:remaining]
+            self._pending = pop
+        return self._pending.get("X")
+
+    def tell(self, evaluation: Evaluation) -> None:
+        """Record the evaluation of the rows from the last ``ask()`` (same order)."""
+        pop = self._pending
+        if pop is None:
+            raise RuntimeError("tell() without ask()")
+        if len(evaluation.f1) != len(pop):
+            raise ValueError(f"tell(): {len(evaluation.f1)} results for {len(pop)} scenarios")
+        self._pending = None
+        f1 = np.where(evaluation.valid, np.nan_to_num(evaluation.f1, nan=0.0), 0.0).astype(float)
+        f2 = self._f2(pop)
+        for i, ind in enumerate(pop):
+            ind.set("f1", f1[i])
+            ind.set("f2", f2[i])
+            ind.set("info", evaluation.row(i))
+        self.evaluations += len(pop)
+        self.best_f1 = max(self.best_f1, float(f1.max(initial=0.0)))
+        if self._algorithm is None:
+            merged = Population.merge(self._archive, pop)
+            order = np.argsort(-merged.get("f1"), kind="stable")[: self.settings.suite_size]
+            self._archive = merged[order]
+            self._record(pop)
+            return
+        if self._pymoo_problem.n_obj == 2:
+            F = np.column_stack([-f1, -f2])
+            G = (self.problem.alpha - f1)[:, None]
+            Evaluator().eval(StaticProblem(self._pymoo_problem, F=F, G=G), pop)
+        else:
+            Evaluator().eval(StaticProblem(self._pymoo_problem, F=-f1[:, None]), pop)
+        self._algorithm.tell(infills=pop)
+        self._record(self._algorithm.pop)
+
+    def step(self) -> bool:
+        """One ask / surrogate-evaluate / tell cycle; False when the run is over."""
+        X = self.ask()
+        if X is None:
+            return False
+        self.tell(self.problem.evaluate_rows(X))
+        return True
+
+    def run(self, progress: Callable[["Search"], None] | None = None) -> SearchResult:
+        while self.step():
+            if progress is not None:
+                progress(self)
+        return self.result()
+
+    # --- internals -----------------------------------------------------------------------
+    def _f2(self, pop: Population) -> np.ndarray:
+        attrs = self.codec.attributes
+        G, lengths = self.codec.split(pop.get("X"))
+        f2 = np.empty(len(pop))
+        refs = [ind.get("ref") for ind in pop]
+        has_ref = np.array([r is not None for r in refs])
+        if self.settings.reference == "front" and self._algorithm is not None and self._algorithm.pop is not None:
+            front = self._current_front(self._algorithm.pop)
+            Gf, lf = self.codec.split(front.get("X")) if len(front) else (G[:0], lengths[:0])
+            return nearest_distance(G, lengths, Gf, lf, attrs)
+        if has_ref.any():
+            Gr, lr = self.codec.split(np.stack([r for r in refs if r is not None]))
+            f2[has_ref] = jaccard_distance(G[has_ref], lengths[has_ref], Gr, lr, attrs)
+        orphans = np.flatnonzero(~has_ref)
+        if len(orphans) == 1:
+            f2[orphans] = 1.0
+        elif len(orphans) > 1:  # initial population / random samples: nearest other orphan
+            D = pairwise_jaccard(G[orphans], lengths[orphans], attrs)
+            np.fill_diagonal(D, np.inf)
+            f2[orphans] = D.min(axis=1)
+        return f2
+
+    def _current_front(self, pop: Population) -> Population:
+        f1, f2 = pop.get("f1").astype(float), pop.get("f2").astype(float)
+        feasible = f1 > self.problem.alpha
+        return pop[non_dominated(f1, f2, feasible)]
+
+    def _record(self, pop: Population) -> None:
+        f1 = pop.get("f1").astype(float)
+        self.history.append(
+            {
+                "evaluations": self.evaluations,
+                "elapsed_s": round(self.elapsed, 4),
+                "best_f1": self.best_f1,
+                "mean_f1": float(f1.mean()) if len(f1) else 0.0,
+                "front_size": len(self._current_front(pop)),
+                "risky": int(np.sum(f1 > self.problem.alpha)),
+            }
+        )
+
+    def suite_population(self) -> Population:
+        """SO: the 10 best; MO: the feasible Pareto front; random: the 10 best samples."""
+        if self._algorithm is None:
+            return self._archive
+        pop = self._algorithm.pop
+        if self._pymoo_problem.n_obj == 2:
+            return self._current_front(pop)
+        order = np.argsort(-pop.get("f1").astype(float), kind="stable")
+        return pop[order[: self.settings.suite_size]]
+
+    def result(self) -> SearchResult:
+        suite_pop = self.suite_population()
+        X = suite_pop.get("X") if len(suite_pop) else np.zeros((0, self.codec.n_var))
+        suite = []
+        for rank, ind in enumerate(suite_pop):
+            info = dict(ind.get("info"))
+            entry = {
+                "rank": rank,
+                "f1": float(ind.get("f1")),
+                "f2": float(ind.get("f2")),
+                "valid": info.pop("valid"),
+                "reason": info.pop("reason"),
+                "metrics": {k: v for k, v in info.items() if k != "f1"},
+                "scenario": self.codec.from_row(ind.get("X")).to_dict(),
+            }
+            suite.append(entry)
+        G, lengths = self.codec.split(X)
+        return SearchResult(
+            settings=self.settings,
+            suite=suite,
+            history=list(self.history),
+            evaluations=self.evaluations,
+            elapsed=self.elapsed,
+            best_f1=self.best_f1,
+            diversity=mean_pairwise_diversity(G, lengths, self.codec.attributes),
+        )

@@ -1,0 +1,121 @@
+"""The one small interface every case study implements (the paper's extension point).
+
+A problem supplies: its attributes and length limits, a sampler for the initial population, the
+"TC to environment" step (``environment``), and the surrogate fitness (``evaluate``). Everything
+works on whole batches: ``G`` is a ``(P, m_max, n_attr)`` float array of attribute codes (see
+``core.attributes``) and ``lengths`` a ``(P,)`` int array; cells past a row's length are 0.
+
+Every number of a case study is a field of its ``Config`` dataclass, so it can be overridden from a
+YAML file or a ROS parameter and is recorded in each run's ``config.json``.
+"""
+from __future__ import annotations
+
+import dataclasses
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Sequence
+
+import numpy as np
+
+from ..core.attributes import Attribute, ScenarioError
+from ..core.scenario import GenomeCodec, Scenario
+
+
+@dataclass(frozen=True)
+class Budget:
+    """Population size, offspring per generation and total evaluations (paper defaults)."""
+
+    population: int
+    offspring: int
+    evaluations: int
+
+
+@dataclass
+class Evaluation:
+    """Surrogate results for a batch: F1 (0 where invalid), validity, the broken rule, metrics."""
+
+    f1: np.ndarray
+    valid: np.ndarray
+    reasons: list[str | None]
+    metrics: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def row(self, i: int) -> dict[str, Any]:
+        """One scenario's result as plain JSON-ready values."""
+        out: dict[str, Any] = {
+            "valid": bool(self.valid[i]),
+            "reason": self.reasons[i],
+            "f1": float(self.f1[i]),
+        }
+        for key, values in self.metrics.items():
+            value = values[i]
+            out[key] = value.item() if hasattr(value, "item") else value
+        return out
+
+
+class Problem(ABC):
+    """Base class of a case study. Subclasses set the class variables and implement three methods."""
+
+    name: ClassVar[str]
+    attributes: ClassVar[tuple[Attribute, ...]]
+    m_min: ClassVar[int]
+    m_max: ClassVar[int]
+    f1_label: ClassVar[str]  # e.g. "RMSE [degC]" for plots and summaries
+    paper_budget: ClassVar[Budget]
+    Config: ClassVar[type]  # a dataclass with every tunable number; must have an ``alpha`` field
+
+    def __init__(self, config: Any = None, **overrides: Any):
+        if config is None:
+            config = self.Config()
+        elif isinstance(config, dict):
+            config = self.config_from_dict(config)
+        if overrides:
+            config = dataclasses.replace(config, **overrides)
+        self.config = config
+        self.codec = GenomeCodec(self.name, self.attributes, self.m_min, self.m_max)
+
+    # --- configuration ---------------------------------------------------------------------
+    @classmethod
+    def config_from_dict(cls, data: dict[str, Any]) -> Any:
+        """Build a Config from a dict, naming any unknown key (bad input never passes silently)."""
+        known = {f.name: f for f in dataclasses.fields(cls.Config)}
+        unknown = set(data) - set(known)
+        if unknown:
+            raise ScenarioError(
+                f"config.{sorted(unknown)[0]}", f"unknown {cls.name} parameter", ", ".join(sorted(known))
+            )
+        return cls.Config(**data)
+
+    def config_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self.config)
+
+    @property
+    def alpha(self) -> float:
+        """MO constraint threshold: a scenario is 'risky' when F1 > alpha."""
+        return float(self.config.alpha)
+
+    # --- the three parts a case study supplies -----------------------------------------------
+    @abstractmethod
+    def sample(self, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """Draw ``n`` initial scenarios as ``(G, lengths)``; every cell inside its domain."""
+
+    @abstractmethod
+    def evaluate(self, G: np.ndarray, lengths: np.ndarray) -> Evaluation:
+        """Check the problem's restrictions and compute the surrogate F1 for a whole batch."""
+
+    @abstractmethod
+    def environment(self, scenario: Scenario) -> Any:
+        """'TC to environment': the concrete environment (schedule, map, road) of one scenario."""
+
+    # --- conveniences built on the three parts ---------------------------------------------------
+    def parse(self, data: dict[str, Any]) -> Scenario:
+        return self.codec.validate(data)
+
+    def evaluate_rows(self, X: np.ndarray) -> Evaluation:
+        return self.evaluate(*self.codec.split(X))
+
+    def evaluate_scenarios(self, scenarios: Sequence[Scenario]) -> Evaluation:
+        X = np.stack([self.codec.to_row(s) for s in scenarios])
+        return self.evaluate_rows(X)
+
+    def sample_rows(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        return self.codec.join(*self.sample(n, rng))

@@ -1,0 +1,49 @@
+"""ament_python package `ambiegen_ros`; also a plain pip package (no ROS needed).
+
+`colcon build --paths . ambiegen_msgs` builds it next to the interface package on a ROS machine;
+`pip install .` installs the same code, its console scripts and the .msg files it needs to speak
+ROS 2 over Cyclone DDS without rclpy.
+"""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "ambiegen_ros"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    description="AmbieGen: evolutionary search for environments in which autonomous systems fail (ROS 2)",
+    packages=find_packages(include=["ambiegen_ros", "ambiegen_ros.*", "sim_nodes", "sim_nodes.*"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE]),
+        ("share/" + PACKAGE, ["package.xml"]),
+        ("share/" + PACKAGE + "/launch", glob("launch/*.py")),
+        ("share/" + PACKAGE + "/config", glob("config/*.yaml")),
+        # the message definitions, so the DDS backend can build the types without a ROS install
+        ("share/" + PACKAGE + "/ambiegen_msgs/msg", glob("ambiegen_msgs/msg/*.msg")),
+    ],
+    python_requires=">=3.10",
+    install_requires=[
+        "pymoo==0.6.1.6",  # operator signatures changed inside 0.6.1.x
+        "numpy>=1.24",
+        "scipy>=1.10",
+        "shapely>=2.0",
+        "matplotlib>=3.6",
+        "PyYAML>=6.0",
+        "mcap==1.6.0",
+        "rosbags==0.11.9",  # CDR codec, Jazzy type store, RIHS01 hashes
+        "cyclonedds==11.0.1",  # one exact version for all our processes (wire-level type matching)
+    ],
+    extras_require={"test": ["pytest>=8", "hypothesis>=6.100"]},
+    zip_safe=True,
+    maintainer="AmbieGen-ROS team",
+    maintainer_email="ambiegen-ros@example.org",
+    license="MIT",
+    tests_require=["pytest"],
+    entry_points={
+        "console_scripts": [
+            "ambiegen = ambiegen_ros.cli:main",
+        ],
+    },
+)
