@@ -35,7 +35,7 @@ setup(
         "rosbags==0.11.9",  # CDR codec, Jazzy type store, RIHS01 hashes
         "cyclonedds==11.0.1",  # one exact version for all our processes (wire-level type matching)
     ],
-    extras_require={"test": ["pytest>=8", "hypothesis>=6.100"]},
+    extras_require={"test": ["pytest>=8", "hypothesis>=6.100", "mcap-ros2-support==0.6.0"]},
     zip_safe=True,
     maintainer="AmbieGen-ROS team",
     maintainer_email="ambiegen-ros@example.org",
@@ -44,6 +44,11 @@ setup(
     entry_points={
         "console_scripts": [
             "ambiegen = ambiegen_ros.cli:main",
+            "generator = ambiegen_ros.nodes.generator:main",
+            "recorder = ambiegen_ros.nodes.recorder:main",
+            "robot_sim = sim_nodes.robot_sim:main",
+            "car_sim = sim_nodes.car_sim:main",
+            "thermostat_sim = sim_nodes.thermostat_sim:main",
         ],
     },
 )

@@ -8,16 +8,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import secrets
 import sys
 import time
-from dataclasses import fields
 from pathlib import Path
 from typing import Any, Callable
 
 from . import __version__
 from .core.attributes import ScenarioError
 from .core.scenario import Scenario
+from .core.config import SETTING_NAMES, ConfigError, make_run
 from .core.search import ALGORITHMS, REFERENCES, Search, SearchSettings
 from .problems import PROBLEM_NAMES, get_problem
 
@@ -29,27 +28,6 @@ class BadInput(Exception):
 
 
 # --- shared helpers (also used by later subcommands) -----------------------------------------
-def load_yaml_config(path: str | None) -> dict[str, Any]:
-    """A run config file: search settings at the top level, problem numbers under problem_config."""
-    if not path:
-        return {}
-    import yaml
-
-    try:
-        data = yaml.safe_load(Path(path).read_text()) or {}
-    except FileNotFoundError:
-        raise BadInput(f"--config: no such file {path}")
-    except yaml.YAMLError as exc:
-        raise BadInput(f"--config: malformed YAML in {path}: {exc}")
-    if not isinstance(data, dict):
-        raise BadInput(f"--config: {path} must hold a mapping")
-    allowed = {f.name for f in fields(SearchSettings)} | {"problem", "problem_config"}
-    unknown = set(data) - allowed
-    if unknown:
-        raise BadInput(f"--config: unknown key {sorted(unknown)[0]!r} (allowed: {', '.join(sorted(allowed))})")
-    return data
-
-
 def load_scenario_file(path: str) -> tuple[Any, Scenario]:
     """Read and validate a scenario JSON file -> (problem, scenario)."""
     try:
@@ -63,37 +41,8 @@ def load_scenario_file(path: str) -> tuple[Any, Scenario]:
 
 def build_search(args: argparse.Namespace) -> tuple[Any, SearchSettings]:
     """Problem + settings from --config and the flags (flags win)."""
-    file_cfg = load_yaml_config(getattr(args, "config", None))
-    problem_name = args.problem or file_cfg.get("problem")
-    if not problem_name:
-        raise BadInput(f"--problem is required (allowed: {'|'.join(PROBLEM_NAMES)})")
-    problem_config = file_cfg.get("problem_config") or {}
-    if not isinstance(problem_config, dict):
-        raise BadInput("--config: problem_config must be a mapping")
-    try:
-        problem = get_problem(problem_name, problem_config)
-    except TypeError as exc:
-        raise BadInput(f"--config: problem_config: {exc}")
-    values = {k: v for k, v in file_cfg.items() if k not in ("problem", "problem_config")}
-    for name in ("algorithm", "evaluations", "time_budget", "population", "offspring", "seed", "reference"):
-        value = getattr(args, name, None)
-        if value is not None:
-            values[name] = value
-    if "seed" not in values:
-        values["seed"] = secrets.randbelow(2**31)
-    if args_has_budget(args):
-        # a budget flag replaces the file's budget entirely
-        values["evaluations"] = getattr(args, "evaluations", None)
-        values["time_budget"] = getattr(args, "time_budget", None)
-    try:
-        settings = SearchSettings(**values).resolved(problem)
-    except (TypeError, ValueError) as exc:
-        raise BadInput(str(exc))
-    return problem, settings
-
-
-def args_has_budget(args: argparse.Namespace) -> bool:
-    return getattr(args, "evaluations", None) is not None or getattr(args, "time_budget", None) is not None
+    overrides = {name: getattr(args, name, None) for name in SETTING_NAMES}
+    return make_run(args.problem, getattr(args, "config", None), **overrides)
 
 
 class Progress:
@@ -224,8 +173,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-EXTRA_COMMANDS: list[Callable[[Any], None]] = []
-"""Subcommand registrars added by other modules (ROS campaign, replay, execute)."""
+def _ros_commands(sub) -> None:
+    from .campaign import register_cli
+
+    register_cli(sub)
+
+
+EXTRA_COMMANDS: list[Callable[[Any], None]] = [_ros_commands]
+"""Subcommand registrars of other modules (ROS campaign, recover, replay)."""
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -236,7 +191,7 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     try:
         return int(args.func(args) or 0)
-    except (BadInput, ScenarioError) as exc:
+    except (BadInput, ScenarioError, ConfigError) as exc:
         print(f"ambiegen {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:

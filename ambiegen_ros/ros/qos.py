@@ -24,3 +24,31 @@ LATCHED = Qos(reliable=True, transient_local=True, depth=1)
 
 STREAM = Qos(reliable=True, transient_local=False, depth=1000)
 """High-rate reliable topics (scenario/result bursts) where a deep queue avoids loss."""
+
+
+# rmw's RMW_DURATION_INFINITE ({INT64_MAX / 1e9 s, remainder ns}): what Jazzy RMWs report for an
+# unset deadline, lifespan and liveliness lease, and what rosbag2 writes into its bags.
+_INFINITE_SEC = 9223372036
+_INFINITE_NSEC = 854775807
+
+
+def to_offered_qos_yaml(qos: Qos) -> str:
+    """rosbag2's ``offered_qos_profiles`` text for one publisher offering ``qos`` (Jazzy form).
+
+    Jazzy (bag metadata version 9) writes policies as lower-case names and durations as
+    ``{sec, nsec}``, serialised by yaml-cpp as a block sequence without a trailing newline.
+    ``ros2 bag play`` rebuilds the publisher from it (history/depth are reset to its default, the
+    rest is kept), which is what makes a replayed map latched again.
+    """
+    infinite = f"\n    sec: {_INFINITE_SEC}\n    nsec: {_INFINITE_NSEC}"
+    return (
+        "- history: keep_last"
+        f"\n  depth: {int(qos.depth)}"
+        f"\n  reliability: {'reliable' if qos.reliable else 'best_effort'}"
+        f"\n  durability: {'transient_local' if qos.transient_local else 'volatile'}"
+        f"\n  deadline:{infinite}"
+        f"\n  lifespan:{infinite}"
+        "\n  liveliness: automatic"
+        f"\n  liveliness_lease_duration:{infinite}"
+        "\n  avoid_ros_namespace_conventions: false"
+    )

@@ -1,0 +1,248 @@
+"""`ambiegen campaign`: the launch file's node set as subprocesses, for machines without ROS.
+
+Starts a recorder, K sim workers and the generator on one DDS domain, waits for the generator to
+finish, stops the others with SIGINT (so the MCAP is finalised), then summarises the run from the
+MCAP log alone and writes ``DIR/summary.json``. Node logs go to ``DIR/logs/``.
+"""
+from __future__ import annotations
+
+import json
+import os
+import secrets
+import signal
+import subprocess
+import sys
+import time
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .ros.runlog import read_metadata, summarize
+
+SIM_MODULES = {"robot": "sim_nodes.robot_sim", "vehicle": "sim_nodes.car_sim", "thermostat": "sim_nodes.thermostat_sim"}
+
+
+@dataclass
+class CampaignSpec:
+    problem: str
+    algorithm: str = "nsga2"
+    evaluations: int | None = None
+    time_budget: float | None = None
+    population: int | None = None
+    offspring: int | None = None
+    seed: int | None = None
+    workers: int = 1
+    mode: str = "surrogate"
+    out: Path = Path("campaign")
+    config: str | None = None
+    domain_id: int | None = None
+    result_timeout: float = 30.0
+    timeout: float = 3600.0
+    extra_env: dict[str, str] = field(default_factory=dict)
+
+
+def _ros_params(**params: Any) -> list[str]:
+    args = ["--ros-args"]
+    for name, value in params.items():
+        if value is None:
+            continue
+        if isinstance(value, bool):
+            value = "true" if value else "false"
+        args += ["-p", f"{name}:={value}"]
+    return args
+
+
+class Campaign:
+    def __init__(self, spec: CampaignSpec):
+        self.spec = spec
+        spec.seed = secrets.randbelow(2**31) if spec.seed is None else spec.seed
+        self.run_id = f"{spec.problem}-{spec.algorithm}-s{spec.seed}-{uuid.uuid4().hex[:6]}"
+        self.out = Path(spec.out)
+        self.mcap = self.out / f"{self.run_id}.mcap"
+        self.procs: dict[str, subprocess.Popen] = {}
+        self.env = dict(os.environ, **spec.extra_env)
+        if spec.domain_id is not None:
+            self.env["ROS_DOMAIN_ID"] = str(spec.domain_id)
+        self.env.setdefault("PYTHONUNBUFFERED", "1")
+
+    def _start(self, name: str, module: str, args: list[str]) -> None:
+        logs = self.out / "logs"
+        logs.mkdir(parents=True, exist_ok=True)
+        log = open(logs / f"{name}.log", "wb")
+        self.procs[name] = subprocess.Popen(
+            [sys.executable, "-m", module, *args], env=self.env, stdout=log, stderr=subprocess.STDOUT
+        )
+
+    def run(self, progress=None) -> dict[str, Any]:
+        spec = self.spec
+        self.out.mkdir(parents=True, exist_ok=True)
+        start = time.monotonic()
+        self._start("recorder", "ambiegen_ros.nodes.recorder", _ros_params(output=str(self.mcap.resolve())))
+        for k in range(spec.workers):
+            name = f"{spec.problem}_sim_{k}"
+            self._start(
+                name,
+                SIM_MODULES[spec.problem],
+                ["--ros-args", "-r", f"__node:={name}"]
+                + _ros_params(worker_id=name, min_result_subscribers=2, config_file=spec.config)[1:],
+            )
+        self._start(
+            "generator",
+            "ambiegen_ros.nodes.generator",
+            _ros_params(
+                problem=spec.problem,
+                algorithm=spec.algorithm,
+                evaluations=spec.evaluations,
+                time_budget=spec.time_budget,
+                population=spec.population,
+                offspring=spec.offspring,
+                seed=spec.seed,
+                mode=spec.mode,
+                run_id=self.run_id,
+                config_file=spec.config,
+                min_subscribers=spec.workers + 1,
+                subscriber_wait=30.0,
+                result_timeout=spec.result_timeout,
+            ),
+        )
+        generator = self.procs["generator"]
+        interrupted = False
+        try:
+            while generator.poll() is None:
+                if time.monotonic() - start > spec.timeout:
+                    generator.send_signal(signal.SIGINT)
+                    break
+                if self.procs["recorder"].poll() is not None:
+                    break  # without a recorder nothing is logged: stop early
+                if progress:
+                    progress(self, time.monotonic() - start)
+                time.sleep(0.2)
+        except KeyboardInterrupt:
+            interrupted = True
+        finally:
+            self._stop_all()
+        summary = self._summary(time.monotonic() - start)
+        summary["interrupted"] = interrupted
+        (self.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+        return summary
+
+    def _stop_all(self) -> None:
+        """Generator first (it may still be writing timeouts), then workers, recorder last."""
+        order = ["generator"] + [n for n in self.procs if n not in ("generator", "recorder")] + ["recorder"]
+        time.sleep(0.3)  # let the last results reach the recorder
+        for name in order:
+            proc = self.procs.get(name)
+            if proc is None or proc.poll() is not None:
+                continue
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+
+    def _summary(self, elapsed: float) -> dict[str, Any]:
+        spec = self.spec
+        summary: dict[str, Any] = {
+            "run_id": self.run_id,
+            "problem": spec.problem,
+            "algorithm": spec.algorithm,
+            "mode": spec.mode,
+            "seed": spec.seed,
+            "workers": spec.workers,
+            "domain_id": self.env.get("ROS_DOMAIN_ID", "0"),
+            "elapsed_s": round(elapsed, 2),
+            "exit_codes": {n: p.returncode for n, p in self.procs.items()},
+        }
+        if self.mcap.exists():
+            try:
+                summary.update(summarize(self.mcap, self.run_id))
+                summary["metadata"] = sorted(read_metadata(self.mcap))
+            except Exception as exc:  # a damaged log is reported, not hidden
+                summary["mcap"] = str(self.mcap)
+                summary["log_error"] = f"{type(exc).__name__}: {exc} (try: ambiegen recover {self.mcap})"
+        else:
+            summary["log_error"] = f"no MCAP written (see {self.out / 'logs' / 'recorder.log'})"
+        return summary
+
+
+def register_cli(sub) -> None:
+    """Adds `campaign` and `recover` to the `ambiegen` CLI."""
+    from .core.search import ALGORITHMS
+    from .problems import PROBLEM_NAMES
+
+    p = sub.add_parser(
+        "campaign",
+        help="start generator + sim workers + recorder over DDS, write DIR/*.mcap and DIR/summary.json",
+        description=__doc__,
+    )
+    p.add_argument("--problem", required=True, choices=PROBLEM_NAMES)
+    p.add_argument("--algorithm", default="nsga2", choices=ALGORITHMS)
+    budget = p.add_mutually_exclusive_group()
+    budget.add_argument("--evaluations", type=int, help="evaluation budget (default: the paper's)")
+    budget.add_argument("--time-budget", type=float, metavar="SECONDS")
+    p.add_argument("--population", type=int)
+    p.add_argument("--offspring", type=int)
+    p.add_argument("--seed", type=int, help="random seed (default: drawn and recorded)")
+    p.add_argument("--workers", type=int, default=1, help="sim workers sharing the scenarios (default 1)")
+    p.add_argument("--mode", default="surrogate", choices=("surrogate", "in_the_loop"))
+    p.add_argument("--config", metavar="FILE.yaml", help="run config (search settings + problem_config)")
+    p.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID for all nodes (default: inherited, else 0)")
+    p.add_argument("--result-timeout", type=float, default=30.0, help="seconds to wait for each result")
+    p.add_argument("--timeout", type=float, default=3600.0, help="stop the campaign after this many seconds")
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.set_defaults(func=cmd_campaign)
+
+    p = sub.add_parser("recover", help="rebuild a valid MCAP from one cut short by SIGKILL")
+    p.add_argument("mcap", metavar="FILE.mcap")
+    p.add_argument("-o", "--output", metavar="OUT.mcap", help="default: FILE.recovered.mcap")
+    p.set_defaults(func=cmd_recover)
+
+
+def cmd_campaign(args) -> int:
+    from .cli import BadInput
+
+    if args.workers < 1:
+        raise BadInput("--workers must be >= 1")
+    spec = CampaignSpec(
+        problem=args.problem,
+        algorithm=args.algorithm,
+        evaluations=args.evaluations,
+        time_budget=args.time_budget,
+        population=args.population,
+        offspring=args.offspring,
+        seed=args.seed,
+        workers=args.workers,
+        mode=args.mode,
+        out=Path(args.out),
+        config=args.config,
+        domain_id=args.domain_id,
+        result_timeout=args.result_timeout,
+        timeout=args.timeout,
+    )
+    campaign = Campaign(spec)
+    tty = sys.stderr.isatty()
+
+    def progress(c: Campaign, elapsed: float) -> None:
+        if tty:
+            sys.stderr.write(f"\rcampaign {c.run_id}: running {elapsed:5.0f} s (logs in {c.out / 'logs'})")
+            sys.stderr.flush()
+
+    summary = campaign.run(progress)
+    if tty:
+        sys.stderr.write("\n")
+    print(json.dumps({k: v for k, v in summary.items() if k != "outcomes"}, indent=2))
+    print(f"MCAP: {summary.get('mcap', campaign.mcap)}")
+    ok = summary.get("exit_codes", {}).get("generator") == 0 and not summary.get("unresolved") and "log_error" not in summary
+    return 0 if ok else 1
+
+
+def cmd_recover(args) -> int:
+    from .ros.mcap_log import recover
+
+    src = Path(args.mcap)
+    dst = Path(args.output) if args.output else src.with_suffix(".recovered.mcap")
+    stats = recover(src, dst)
+    print(json.dumps({"recovered": str(dst), **stats}, indent=2))
+    return 0

@@ -1,0 +1,1 @@
+"""ROS nodes: thin wrappers over the core (each module has main())."""

@@ -1,0 +1,117 @@
+"""`recorder`: writes every topic of a run, as raw CDR bytes (no decoding), to one MCAP file.
+
+The file follows the ROS 2 MCAP profile (schemas, ``offered_qos_profiles``, type hashes,
+summary), so ``ros2 bag info/play`` and Foxglove open it. The run's config, seed and versions are
+stored as MCAP metadata when the latched ``RunConfig`` arrives. The log is flushed every
+``flush_period`` seconds and finalised on SIGINT/SIGTERM; after a SIGKILL,
+``ambiegen recover FILE.mcap`` rebuilds a valid file with everything up to the last flush.
+
+Parameters: ``output`` (file path; default ``ambiegen_<utc time>.mcap``), ``flush_period`` (s),
+``compression`` (zstd | lz4 | none), ``extra_topics`` (``topic=pkg/msg/Type`` entries to record
+besides the AmbieGen topics), ``discover`` (also record other topics found under ``/ambiegen``).
+"""
+from __future__ import annotations
+
+import json
+import sys
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from .. import __version__
+from ..ros import topics
+from ..ros.mcap_log import McapLog
+from ..ros.qos import DEFAULT, Qos
+from ..ros.transport import create_node
+from ..ros.types import get_registry
+
+
+class Recorder:
+    def __init__(self, argv: list[str] | None = None, node=None):
+        self.node = node or create_node("recorder", argv=argv)
+        n = self.node
+        stamp = datetime.now(timezone.utc).strftime("%Y%m%d_%H%M%S")
+        output = n.declare_parameter("output", f"ambiegen_{stamp}.mcap", "MCAP file to write")
+        flush_period = n.declare_parameter("flush_period", 1.0, "seconds between flushes (data safe from SIGKILL)")
+        compression = n.declare_parameter("compression", "zstd", "zstd | lz4 | none")
+        extra = n.declare_parameter("extra_topics", "", "extra 'topic=pkg/msg/Type' entries to record, comma-separated")
+        self.discover = n.declare_parameter("discover", True, "also record other topics under /ambiegen")
+        self.path = Path(output)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.registry = get_registry()
+        self.log = McapLog(self.path, self.registry, compression=compression, library=f"ambiegen-ros {__version__} recorder")
+        self.log.add_metadata("ambiegen_recorder", {"version": __version__, "started": stamp})
+        self._config_seen = False
+        for topic, typename, qos in topics.run_topics():
+            self.record(topic, typename, qos)
+        for entry in extra.split(","):
+            if entry.strip():
+                topic, _, typename = entry.partition("=")
+                self.record(topic.strip(), typename.strip(), DEFAULT)
+        n.create_timer(flush_period, self.flush)
+        if self.discover:
+            n.create_timer(1.0, self.discover_topics)
+        n.logger.info(f"recording to {self.path}")
+
+    def record(self, topic: str, typename: str, qos: Qos) -> None:
+        if self.log.channel_id(topic) is not None:
+            return
+        if not self.registry.has(typename):
+            self.node.logger.warning(f"not recording {topic}: unknown type {typename}")
+            return
+        channel = self.log.add_channel(topic, typename, qos)
+        is_config = topic == topics.RUN_CONFIG
+
+        def on_bytes(data: bytes, receive_ns: int) -> None:
+            self.log.write(channel, data, receive_ns)
+            if is_config:
+                self.store_run_config(data)
+
+        self.node.create_subscription(typename, topic, on_bytes, qos, raw=True)
+
+    def store_run_config(self, data: bytes) -> None:
+        msg = self.registry.deserialize(data, topics.RUN_CONFIG_TYPE)
+        config = json.loads(msg.config_json)
+        self.log.add_metadata(
+            "ambiegen_run",
+            {
+                "run_id": msg.run_id,
+                "package_version": msg.package_version,
+                "seed": str(config.get("seed")),
+                "problem": str(config.get("problem")),
+                "config_json": msg.config_json,
+            },
+        )
+
+    def discover_topics(self) -> None:
+        for topic, types in self.node.topic_names_and_types():
+            if topic.startswith(topics.NAMESPACE + "/") and self.log.channel_id(topic) is None and types:
+                offered = self.node.publishers_info(topic)
+                qos = offered[0].qos if offered else DEFAULT
+                self.record(topic, types[0], qos)
+
+    def flush(self) -> None:
+        self.log.flush()
+
+    def close(self) -> None:
+        self.log.close()
+        counts = self.log.counts()
+        self.node.logger.info(f"closed {self.path}: {sum(counts.values())} messages")
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        recorder = Recorder(argv)
+    except (ValueError, OSError) as exc:
+        print(f"recorder: error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        recorder.node.spin()
+    finally:
+        recorder.close()
+        recorder.node.shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,272 @@
+"""Every conversion between core objects and ROS messages, in one module.
+
+Messages are built with ``make(typename, **fields)``, the backend-native factory of the transport
+seam (``node.new_message``), so the same code fills rclpy classes or the DDS backend's types.
+Incoming messages are read by attribute only, which both backends support.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from ..core.attributes import Categorical, ScenarioError
+from ..core.scenario import Scenario
+from ..problems.base import Problem
+from ..sims.outcome import FAILURE_KINDS, FAILURE_NAMES, Outcome
+from . import topics
+
+Make = Callable[..., Any]
+
+
+@dataclass
+class ScenarioMeta:
+    """Identity and surrogate fitness of a scenario as the generator publishes it."""
+
+    run_id: str
+    scenario_id: int
+    generation: int = 0
+    seed: int = 0
+    f1: float = 0.0
+    f2: float = float("nan")
+    valid: bool = True
+    reason: str = ""
+    worker: str = ""
+    attempt: int = 1
+
+
+# --- small standard pieces ---------------------------------------------------------------------
+def stamp(make: Make, now_ns: int) -> Any:
+    return make("builtin_interfaces/msg/Time", sec=int(now_ns // 1_000_000_000), nanosec=int(now_ns % 1_000_000_000))
+
+
+def header(make: Make, now_ns: int, frame_id: str = "map") -> Any:
+    return make("std_msgs/msg/Header", stamp=stamp(make, now_ns), frame_id=frame_id)
+
+
+def stamp_ns(msg_header: Any) -> int:
+    return int(msg_header.stamp.sec) * 1_000_000_000 + int(msg_header.stamp.nanosec)
+
+
+def pose(make: Make, x: float, y: float, yaw: float = 0.0) -> Any:
+    return make(
+        "geometry_msgs/msg/Pose",
+        position=make("geometry_msgs/msg/Point", x=float(x), y=float(y), z=0.0),
+        orientation=make("geometry_msgs/msg/Quaternion", x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)),
+    )
+
+
+def pose_stamped(make: Make, now_ns: int, x: float, y: float, yaw: float = 0.0) -> Any:
+    return make("geometry_msgs/msg/PoseStamped", header=header(make, now_ns), pose=pose(make, x, y, yaw))
+
+
+def path(make: Make, now_ns: int, points: np.ndarray | None) -> Any:
+    """A polyline as ``nav_msgs/Path``; each pose heads towards the next point."""
+    pts = np.zeros((0, 2)) if points is None else np.asarray(points, dtype=float).reshape(-1, 2)
+    if len(pts) > 1:
+        d = np.diff(pts, axis=0)
+        yaw = np.arctan2(d[:, 1], d[:, 0])
+        yaw = np.append(yaw, yaw[-1])
+    else:
+        yaw = np.zeros(len(pts))
+    poses = [pose_stamped(make, now_ns, x, y, a) for (x, y), a in zip(pts, yaw)]
+    return make("nav_msgs/msg/Path", header=header(make, now_ns), poses=poses)
+
+
+def path_points(msg_path: Any) -> np.ndarray:
+    return np.array([[p.pose.position.x, p.pose.position.y] for p in msg_path.poses], dtype=float).reshape(-1, 2)
+
+
+def key_values(make: Make, values: dict[str, Any]) -> list[Any]:
+    return [make("diagnostic_msgs/msg/KeyValue", key=str(k), value=_text(v)) for k, v in values.items()]
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, (dict, list, tuple)):
+        return json.dumps(value)
+    return str(value)
+
+
+# --- scenarios -----------------------------------------------------------------------------------
+def scenario_header(make: Make, now_ns: int, problem: Problem, scenario: Scenario, meta: ScenarioMeta) -> Any:
+    codec = problem.codec
+    row = codec.to_row(scenario)
+    G, lengths = codec.split(row)
+    genome = G[0, : lengths[0]].reshape(-1)
+    categorical = ["|".join(map(str, a.values)) if isinstance(a, Categorical) else "" for a in codec.attributes]
+    return make(
+        "ambiegen_msgs/msg/ScenarioHeader",
+        header=header(make, now_ns),
+        run_id=meta.run_id,
+        scenario_id=int(meta.scenario_id),
+        generation=int(meta.generation),
+        seed=int(meta.seed),
+        problem=problem.name,
+        attribute_names=list(codec.names),
+        categorical_values=categorical,
+        genome=np.asarray(genome, dtype=np.float64),
+        scenario_json=json.dumps(scenario.to_dict(), separators=(",", ":")),
+        f1=float(meta.f1),
+        f2=float(meta.f2),
+        surrogate_valid=bool(meta.valid),
+        invalid_reason=meta.reason or "",
+        assigned_worker=meta.worker,
+        attempt=int(meta.attempt),
+    )
+
+
+def scenario_message(make: Make, now_ns: int, problem: Problem, scenario: Scenario, meta: ScenarioMeta) -> Any:
+    """The problem's scenario message: the genome plus its environment in standard types."""
+    meta_msg = scenario_header(make, now_ns, problem, scenario, meta)
+    typename = topics.SCENARIO_TYPES[problem.name]
+    env = problem.environment(scenario)
+    if problem.name == "robot":
+        return make(typename, meta=meta_msg, map=occupancy_grid(make, now_ns, env), start=pose_stamped(make, now_ns, *env.start_m), goal=pose_stamped(make, now_ns, *env.goal_m))
+    if problem.name == "vehicle":
+        cfg = problem.config
+        return make(
+            typename,
+            meta=meta_msg,
+            road=path(make, now_ns, env.nodes),
+            road_points=[make("geometry_msgs/msg/Point", x=float(x), y=float(y), z=0.0) for x, y in np.asarray(env.points)],
+            lane_width=float(env.lane_width),
+            speed_limit=float(getattr(cfg, "speed_limit", 70 / 3.6)),
+            map_size=float(cfg.map_size),
+        )
+    if problem.name == "thermostat":
+        return make(
+            typename,
+            meta=meta_msg,
+            setpoints=np.asarray(env.setpoints, dtype=np.float64),
+            durations_min=np.asarray(env.durations, dtype=np.uint32),
+            room_models=np.asarray(env.models, dtype=np.uint8),
+            initial_temperature=float(env.initial_temperature),
+        )
+    raise ScenarioError("problem", f"no ROS message for problem {problem.name!r}", "|".join(topics.SCENARIO_TYPES))
+
+
+def occupancy_grid(make: Make, now_ns: int, env: Any) -> Any:
+    grid = np.asarray(env.grid, dtype=bool)
+    height, width = grid.shape
+    info = make(
+        "nav_msgs/msg/MapMetaData",
+        map_load_time=stamp(make, now_ns),
+        resolution=float(env.resolution),
+        width=int(width),
+        height=int(height),
+        origin=pose(make, 0.0, 0.0),
+    )
+    data = np.where(grid, 100, 0).astype(np.int8).reshape(-1)  # row-major from cell (0, 0): index y * width + x
+    return make("nav_msgs/msg/OccupancyGrid", header=header(make, now_ns), info=info, data=data)
+
+
+def grid_from_message(msg_grid: Any) -> np.ndarray:
+    """``nav_msgs/OccupancyGrid`` -> bool ``[y, x]`` (unknown cells count as occupied)."""
+    data = np.asarray(msg_grid.data, dtype=np.int16).reshape(msg_grid.info.height, msg_grid.info.width)
+    return (data != 0)
+
+
+def scenario_from_message(problem: Problem, msg: Any) -> tuple[Scenario, dict[str, Any]]:
+    """Validate an incoming scenario message; raises ``ScenarioError`` naming the bad field.
+
+    The JSON form in ``meta.scenario_json`` is authoritative; the genome must agree with it.
+    """
+    meta = msg.meta
+    if meta.problem != problem.name:
+        raise ScenarioError("meta.problem", f"this node executes {problem.name!r}, got {meta.problem!r}", problem.name)
+    try:
+        data = Scenario.parse_json(meta.scenario_json)
+    except ScenarioError as exc:
+        raise ScenarioError("meta.scenario_json", exc.message, exc.allowed)
+    try:
+        scenario = problem.parse(data)
+    except ScenarioError as exc:
+        raise ScenarioError(f"meta.scenario_json.{exc.field}", exc.message, exc.allowed)
+    genome = np.asarray(meta.genome, dtype=float)
+    if not np.all(np.isfinite(genome)):
+        raise ScenarioError("meta.genome", "holds NaN or infinite values", "finite attribute codes")
+    expected = problem.codec.split(problem.codec.to_row(scenario))
+    cells = expected[0][0, : expected[1][0]].reshape(-1)
+    if genome.shape != cells.shape or not np.allclose(genome, cells):
+        raise ScenarioError("meta.genome", "does not match meta.scenario_json", "the scenario's attribute codes")
+    info = {
+        "run_id": meta.run_id,
+        "scenario_id": int(meta.scenario_id),
+        "generation": int(meta.generation),
+        "seed": int(meta.seed),
+        "worker": meta.assigned_worker,
+        "attempt": int(meta.attempt),
+        "f1": float(meta.f1),
+    }
+    return scenario, info
+
+
+# --- results -------------------------------------------------------------------------------------
+def result_message(
+    make: Make, now_ns: int, run_id: str, scenario_id: int, problem: str, worker: str, outcome: Outcome
+) -> Any:
+    names = list(outcome.objectives)
+    return make(
+        topics.RESULT_TYPE,
+        header=header(make, now_ns),
+        run_id=run_id,
+        scenario_id=int(scenario_id),
+        problem=problem,
+        worker=worker,
+        objective_names=names,
+        objectives=np.asarray([float(outcome.objectives[n]) for n in names], dtype=np.float64),
+        failed=bool(outcome.failed),
+        failure_kind=FAILURE_KINDS[outcome.failure_kind],
+        detail=outcome.detail,
+        metrics=key_values(make, outcome.metrics),
+        elapsed_sec=float(outcome.elapsed_sec),
+        trajectory=path(make, now_ns, outcome.trajectory),
+    )
+
+
+def outcome_from_message(msg: Any) -> Outcome:
+    kind = FAILURE_NAMES.get(int(msg.failure_kind))
+    if kind is None:
+        raise ScenarioError("failure_kind", f"unknown code {msg.failure_kind}", ", ".join(map(str, FAILURE_NAMES)))
+    objectives = {str(n): float(v) for n, v in zip(msg.objective_names, msg.objectives)}
+    traj = path_points(msg.trajectory)
+    return Outcome(
+        objectives=objectives,
+        failed=bool(msg.failed),
+        failure_kind=kind,
+        detail=str(msg.detail),
+        metrics={kv.key: kv.value for kv in msg.metrics},
+        trajectory=traj if len(traj) else None,
+        elapsed_sec=float(msg.elapsed_sec),
+    )
+
+
+# --- run status / config -------------------------------------------------------------------------
+def run_config_message(make: Make, now_ns: int, run_id: str, config: dict[str, Any], version: str) -> Any:
+    return make(
+        topics.RUN_CONFIG_TYPE,
+        header=header(make, now_ns),
+        run_id=run_id,
+        config_json=json.dumps(config, sort_keys=True),
+        package_version=version,
+    )
+
+
+def status_message(make: Make, now_ns: int, **fields: Any) -> Any:
+    return make(topics.STATUS_TYPE, header=header(make, now_ns), **fields)
+
+
+def heartbeat_message(make: Make, worker: str, problem: str, in_flight: int, executed: int) -> Any:
+    return make(
+        topics.WORKERS_TYPE,
+        level=b"\x00" if False else 0,
+        name=worker,
+        message="busy" if in_flight else "idle",
+        hardware_id=problem,
+        values=key_values(make, {"in_flight": in_flight, "executed": executed}),
+    )

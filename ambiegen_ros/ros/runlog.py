@@ -1,0 +1,81 @@
+"""Reading a run back from its MCAP log: decoded messages, metadata and the campaign summary.
+
+The summary is computed from the log alone (not from what the generator believes), so it is the
+proof that every published scenario ended with a result or an explicit timeout record.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Iterator
+
+from mcap.reader import make_reader
+
+from ..sims.outcome import FAILURE_NAMES
+from . import topics
+from .types import get_registry
+
+
+def iter_messages(path: str | Path, only: set[str] | None = None) -> Iterator[tuple[str, str, int, Any]]:
+    """(topic, type, log time ns, decoded message) for every message, in log-time order."""
+    registry = get_registry()
+    with open(path, "rb") as fh:
+        reader = make_reader(fh)
+        for schema, channel, message in reader.iter_messages(topics=list(only) if only else None, log_time_order=True):
+            typename = schema.name if schema else ""
+            yield channel.topic, typename, message.log_time, registry.deserialize(message.data, typename)
+
+
+def read_metadata(path: str | Path) -> dict[str, dict[str, str]]:
+    with open(path, "rb") as fh:
+        return {m.name: dict(m.metadata) for m in make_reader(fh).iter_metadata()}
+
+
+def summarize(path: str | Path, run_id: str | None = None) -> dict[str, Any]:
+    """Counts per run from the log: scenarios, results, failures, timeouts, errors, unresolved ids."""
+    scenario_topics = {topics.scenarios(p) for p in topics.SCENARIO_TYPES}
+    scenarios: dict[int, int] = {}
+    results: dict[int, Any] = {}
+    duplicates = 0
+    kinds: dict[str, int] = {}
+    last_status = None
+    for topic, _, _, msg in iter_messages(path, scenario_topics | {topics.RESULTS, topics.STATUS}):
+        if topic in scenario_topics:
+            if run_id is None:
+                run_id = msg.meta.run_id
+            if msg.meta.run_id == run_id:
+                sid = int(msg.meta.scenario_id)
+                scenarios[sid] = scenarios.get(sid, 0) + 1
+        elif topic == topics.RESULTS:
+            if run_id is not None and msg.run_id != run_id:
+                continue
+            sid = int(msg.scenario_id)
+            if sid in results:
+                duplicates += 1
+                continue
+            results[sid] = msg
+            kind = FAILURE_NAMES.get(int(msg.failure_kind), str(msg.failure_kind))
+            kinds[kind] = kinds.get(kind, 0) + 1
+        elif topic == topics.STATUS and (run_id is None or msg.run_id == run_id):
+            last_status = msg
+    unresolved = sorted(set(scenarios) - set(results))
+    summary = {
+        "run_id": run_id,
+        "mcap": str(path),
+        "scenarios_published": len(scenarios),
+        "scenario_messages": sum(scenarios.values()),
+        "results_received": sum(1 for sid in results if sid in scenarios),
+        "failures": sum(1 for m in results.values() if m.failed),
+        "timeouts": kinds.get("sim_timeout", 0),
+        "errors": kinds.get("error", 0),
+        "invalid": kinds.get("invalid_scenario", 0),
+        "outcomes": dict(sorted(kinds.items())),
+        "duplicate_results": duplicates,
+        "unresolved": unresolved,
+    }
+    if last_status is not None:
+        summary.update(
+            evaluations=int(last_status.evaluations),
+            best_f1=float(last_status.best_f1),
+            final_state=str(last_status.state),
+        )
+    return summary

@@ -1,0 +1,44 @@
+"""Topic names, message types and QoS of an AmbieGen run, in one place.
+
+Every topic lives under ``/ambiegen``; the recorder records all of them (plus anything else it
+discovers under the namespace). Scenario and result topics are reliable with a deep queue so a
+burst of scenarios is never dropped; the run config is latched for late joiners.
+"""
+from __future__ import annotations
+
+from .qos import DEFAULT, LATCHED, STREAM, Qos
+
+NAMESPACE = "/ambiegen"
+
+RUN_CONFIG = f"{NAMESPACE}/run_config"
+STATUS = f"{NAMESPACE}/status"
+WORKERS = f"{NAMESPACE}/workers"
+RESULTS = f"{NAMESPACE}/results"
+
+RUN_CONFIG_TYPE = "ambiegen_msgs/msg/RunConfig"
+STATUS_TYPE = "ambiegen_msgs/msg/RunStatus"
+WORKERS_TYPE = "diagnostic_msgs/msg/DiagnosticStatus"
+RESULT_TYPE = "ambiegen_msgs/msg/ScenarioResult"
+
+SCENARIO_TYPES = {
+    "thermostat": "ambiegen_msgs/msg/ThermostatScenario",
+    "robot": "ambiegen_msgs/msg/RobotScenario",
+    "vehicle": "ambiegen_msgs/msg/VehicleScenario",
+}
+
+
+def scenarios(problem: str) -> str:
+    """The scenario topic of one problem, e.g. ``/ambiegen/robot/scenarios``."""
+    return f"{NAMESPACE}/{problem}/scenarios"
+
+
+def run_topics() -> list[tuple[str, str, Qos]]:
+    """(topic, type, QoS) of every topic an AmbieGen run may use, for every problem."""
+    topics = [
+        (RUN_CONFIG, RUN_CONFIG_TYPE, LATCHED),
+        (STATUS, STATUS_TYPE, DEFAULT),
+        (WORKERS, WORKERS_TYPE, DEFAULT),
+        (RESULTS, RESULT_TYPE, STREAM),
+    ]
+    topics += [(scenarios(p), t, STREAM) for p, t in SCENARIO_TYPES.items()]
+    return topics

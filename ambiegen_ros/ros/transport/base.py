@@ -1,0 +1,367 @@
+"""The backend-neutral node interface every AmbieGen node is written against.
+
+Nodes only see ``Node``, ``Publisher``, ``Subscription`` and ``Timer``; the rclpy and the Cyclone
+DDS backends implement them. The parts that do not touch a middleware (ROS name resolution,
+parameters, logging format, waiting for subscribers) live here so both backends behave alike.
+"""
+from __future__ import annotations
+
+import abc
+import re
+import sys
+import time
+from dataclasses import dataclass
+from typing import Any, Callable, ClassVar, Sequence
+
+from ambiegen_ros.ros.qos import Qos
+
+from . import params as _params
+from .params import ParameterError
+
+__all__ = [
+    "TransportError", "BackendUnavailable", "ParameterError", "EndpointInfo", "Logger",
+    "Publisher", "Subscription", "Timer", "Node",
+    "validate_node_name", "normalize_namespace", "resolve_topic_name",
+]
+
+
+class TransportError(RuntimeError):
+    """A middleware operation failed (entity creation, write, bad payload)."""
+
+
+class BackendUnavailable(TransportError):
+    """The requested backend cannot be imported on this machine."""
+
+
+@dataclass(frozen=True)
+class EndpointInfo:
+    """One publisher or subscription seen in the graph (what ``ros2 topic info -v`` shows)."""
+
+    topic: str
+    typename: str
+    qos: Qos
+    keep_all: bool = False
+    type_hash: str = ""
+    node_name: str = ""
+    node_namespace: str = ""
+
+
+_LEVELS = {"debug": 10, "info": 20, "warn": 30, "warning": 30, "error": 40, "fatal": 50}
+
+
+class Logger:
+    """ROS-formatted console logger (``[INFO] [sec.nsec] [name]: msg`` on stderr, like rcutils)."""
+
+    def __init__(self, name: str, level: str = "info", stream=None):
+        self.name = name
+        self._stream = stream
+        self.set_level(level)
+
+    def set_level(self, level: str) -> None:
+        key = str(level).lower()
+        if key not in _LEVELS:
+            raise ValueError(f"unknown log level {level!r}; use one of {sorted(_LEVELS)}")
+        self._threshold = _LEVELS[key]
+
+    def _log(self, severity: str, level: int, msg: Any) -> None:
+        if level < self._threshold:
+            return
+        ns = time.time_ns()
+        stream = self._stream or sys.stderr
+        stream.write(f"[{severity}] [{ns // 1_000_000_000}.{ns % 1_000_000_000:09d}] [{self.name}]: {msg}\n")
+        stream.flush()
+
+    def debug(self, msg: Any) -> None:
+        self._log("DEBUG", 10, msg)
+
+    def info(self, msg: Any) -> None:
+        self._log("INFO", 20, msg)
+
+    def warning(self, msg: Any) -> None:
+        self._log("WARN", 30, msg)
+
+    warn = warning
+
+    def error(self, msg: Any) -> None:
+        self._log("ERROR", 40, msg)
+
+    def fatal(self, msg: Any) -> None:
+        self._log("FATAL", 50, msg)
+
+
+# ---------------------------------------------------------------------------------------------
+# ROS 2 name rules (REP / design article "Topic and Service name mapping to DDS")
+
+_NODE_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_TOKEN = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+def validate_node_name(name: str) -> str:
+    if not _NODE_NAME.match(name or ""):
+        raise ValueError(f"invalid node name {name!r}: letters, digits and '_', not starting with a digit")
+    return name
+
+
+def normalize_namespace(namespace: str | None) -> str:
+    """'' -> '/', 'a/b' -> '/a/b', '/a/' -> '/a'; each token must be a valid ROS name token."""
+    ns = (namespace or "").strip()
+    if not ns or ns == "/":
+        return "/"
+    tokens = [t for t in ns.strip("/").split("/")]
+    for tok in tokens:
+        if not _TOKEN.match(tok):
+            raise ValueError(f"invalid namespace {namespace!r} (token {tok!r})")
+    return "/" + "/".join(tokens)
+
+
+def resolve_topic_name(topic: str, node_name: str, namespace: str,
+                       remaps: Sequence[tuple[str, str]] = ()) -> str:
+    """Fully qualified ROS name: relative names join the namespace, '~' is the node's private ns.
+
+    Remap rules compare fully qualified names (both sides resolved against this node), first
+    matching rule wins, as in rcl.
+    """
+    fqn = _expand(topic, node_name, namespace)
+    for src, dst in remaps:
+        try:
+            if _expand(src, node_name, namespace) == fqn:
+                return _expand(dst, node_name, namespace)
+        except ValueError:
+            continue
+    return fqn
+
+
+def _expand(topic: str, node_name: str, namespace: str) -> str:
+    if not topic:
+        raise ValueError("empty topic name")
+    ns = normalize_namespace(namespace)
+    name = topic.replace("{node}", node_name).replace("{ns}", ns.rstrip("/") or "")
+    if name.startswith("~"):
+        base = (ns.rstrip("/") + "/" + node_name)
+        rest = name[1:]
+        if rest and not rest.startswith("/"):
+            raise ValueError(f"invalid topic name {topic!r}: '~' must be followed by '/'")
+        name = base + rest
+    elif not name.startswith("/"):
+        name = ns.rstrip("/") + "/" + name
+    if name.endswith("/") or "//" in name:
+        raise ValueError(f"invalid topic name {topic!r}")
+    for tok in name[1:].split("/"):
+        if not _TOKEN.match(tok):
+            raise ValueError(f"invalid topic name {topic!r} (token {tok!r})")
+    return name
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+class Publisher(abc.ABC):
+    """Sends messages of one type on one topic."""
+
+    topic: str
+    typename: str
+    qos: Qos
+
+    @abc.abstractmethod
+    def publish(self, msg: Any) -> None:
+        """Serialise and send a backend-native message (see ``Node.new_message``)."""
+
+    @abc.abstractmethod
+    def publish_raw(self, data: bytes) -> None:
+        """Send already-serialised CDR (with its 4-byte encapsulation header) unchanged."""
+
+    @abc.abstractmethod
+    def subscription_count(self) -> int:
+        """Matched subscriptions right now (local and remote)."""
+
+    def destroy(self) -> None:  # pragma: no cover - optional in backends
+        pass
+
+
+class Subscription(abc.ABC):
+    topic: str
+    typename: str
+    qos: Qos
+    raw: bool
+
+    def destroy(self) -> None:  # pragma: no cover - optional in backends
+        pass
+
+
+class Timer(abc.ABC):
+    period_s: float
+
+    @abc.abstractmethod
+    def cancel(self) -> None:
+        """Stop calling the callback; idempotent."""
+
+    @abc.abstractmethod
+    def is_canceled(self) -> bool:
+        ...
+
+
+class Node(abc.ABC):
+    """A ROS 2 node: parameters, pub/sub, timers, a single-threaded spin loop.
+
+    Callbacks run only inside ``spin``/``spin_once`` on the calling thread, so node code needs no
+    locks. SIGINT/SIGTERM make ``spin`` return (``ok()`` turns False) so nodes can finalise files.
+    """
+
+    backend_name: ClassVar[str] = "?"
+
+    def __init__(self, name: str, namespace: str = "", argv: Sequence[str] | None = None,
+                 parameter_overrides: dict[str, Any] | None = None):
+        self._argv = list(sys.argv if argv is None else argv)
+        self._ros_args = _params.parse_ros_args(self._argv)
+        requested = validate_node_name(name)
+        self._name = validate_node_name(self._ros_args.node_name_override(requested) or requested)
+        ns_override = self._ros_args.namespace_override(requested)
+        self._namespace = normalize_namespace(ns_override if ns_override is not None else namespace)
+        self._overrides = dict(parameter_overrides or {})
+        self._parameters: dict[str, Any] = {}
+        self._descriptions: dict[str, str] = {}
+        self._logger = self._make_logger()
+
+    # -- identity -----------------------------------------------------------------------------
+    @property
+    def name(self) -> str:
+        return self._name
+
+    @property
+    def namespace(self) -> str:
+        return self._namespace
+
+    @property
+    def fully_qualified_name(self) -> str:
+        return self._namespace.rstrip("/") + "/" + self._name
+
+    @property
+    def logger(self):
+        return self._logger
+
+    @property
+    def argv(self) -> list[str]:
+        """The process arguments without ROS sections (for nodes with their own CLI)."""
+        return _params.strip_ros_args(self._argv)
+
+    def _make_logger(self):
+        lg = Logger(self.fully_qualified_name.lstrip("/").replace("/", "."))
+        if self._ros_args.log_level:
+            lg.set_level(self._ros_args.log_level)
+        return lg
+
+    def resolve_topic_name(self, topic: str) -> str:
+        return resolve_topic_name(topic, self._name, self._namespace,
+                                  self._ros_args.topic_remaps(self._name))
+
+    # -- parameters -----------------------------------------------------------------------------
+    def declare_parameter(self, name: str, default: Any = None, description: str = "") -> Any:
+        """Declare once; returns the override from argv/params file/overrides, else ``default``.
+
+        The value must have the default's type (an integer is accepted for a float default);
+        a mismatch raises ParameterError naming the parameter.
+        """
+        if name in self._parameters:
+            raise ParameterError(f"parameter {name!r} already declared")
+        found, value = self._parameter_source(name, default, description)
+        value = _params.coerce_parameter(name, value, default) if found else default
+        self._parameters[name] = value
+        self._descriptions[name] = description
+        return value
+
+    def get_parameter(self, name: str) -> Any:
+        try:
+            return self._parameters[name]
+        except KeyError:
+            raise ParameterError(f"parameter {name!r} has not been declared") from None
+
+    def has_parameter(self, name: str) -> bool:
+        return name in self._parameters
+
+    @property
+    def parameters(self) -> dict[str, Any]:
+        return dict(self._parameters)
+
+    @abc.abstractmethod
+    def _parameter_source(self, name: str, default: Any, description: str) -> tuple[bool, Any]:
+        """(True, value) if something overrides ``name``, else (False, None)."""
+
+    # -- communication --------------------------------------------------------------------------
+    @abc.abstractmethod
+    def create_publisher(self, typename: str, topic: str, qos: Qos) -> Publisher:
+        ...
+
+    @abc.abstractmethod
+    def create_subscription(self, typename: str, topic: str, callback: Callable[..., None],
+                            qos: Qos, raw: bool = False) -> Subscription:
+        """raw=False: ``callback(msg)``; raw=True: ``callback(cdr_bytes, receive_time_ns)``."""
+
+    @abc.abstractmethod
+    def create_timer(self, period_s: float, callback: Callable[[], None]) -> Timer:
+        ...
+
+    @abc.abstractmethod
+    def now_ns(self) -> int:
+        """Current ROS time in nanoseconds since the epoch."""
+
+    @abc.abstractmethod
+    def new_message(self, typename: str, **fields: Any) -> Any:
+        """A backend-native message with defaults, fields set from keyword arguments."""
+
+    @abc.abstractmethod
+    def topic_names_and_types(self) -> list[tuple[str, list[str]]]:
+        """Every topic with a publisher or subscription in the graph, sorted by name."""
+
+    @abc.abstractmethod
+    def publishers_info(self, topic: str) -> list[EndpointInfo]:
+        """Publishers on ``topic`` with their offered QoS (the recorder stores them)."""
+
+    # -- execution ------------------------------------------------------------------------------
+    @abc.abstractmethod
+    def spin(self) -> None:
+        """Run callbacks until shutdown or SIGINT/SIGTERM; returns normally in both cases."""
+
+    @abc.abstractmethod
+    def spin_once(self, timeout_s: float | None = None) -> None:
+        """Wait up to ``timeout_s`` for work and run what is ready."""
+
+    @abc.abstractmethod
+    def ok(self) -> bool:
+        ...
+
+    @abc.abstractmethod
+    def request_shutdown(self) -> None:
+        """Make ``spin`` return soon and ``ok()`` False; safe from callbacks and signal handlers."""
+
+    @abc.abstractmethod
+    def shutdown(self) -> None:
+        """Release the middleware entities; idempotent."""
+
+    def wait_for_subscribers(self, publisher: Publisher, count: int = 1, timeout_s: float = 5.0) -> bool:
+        """Block (without running callbacks) until ``publisher`` has ``count`` matches."""
+        deadline = time.monotonic() + max(0.0, timeout_s)
+        while True:
+            if publisher.subscription_count() >= count:
+                return True
+            if time.monotonic() >= deadline or not self.ok():
+                return publisher.subscription_count() >= count
+            time.sleep(0.005)
+
+    def spin_until(self, predicate: Callable[[], bool], timeout_s: float | None = None) -> bool:
+        """Spin until ``predicate()`` is true, the timeout passes or the node stops."""
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        while self.ok() and not predicate():
+            left = None if deadline is None else deadline - time.monotonic()
+            if left is not None and left <= 0:
+                break
+            self.spin_once(0.05 if left is None else min(0.05, left))
+        return bool(predicate())
+
+    def __enter__(self) -> "Node":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.shutdown()
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.fully_qualified_name} backend={self.backend_name}>"

@@ -1,0 +1,714 @@
+"""Cyclone DDS (PyPI ``cyclonedds==11.0.1``) backend speaking the ROS 2 wire conventions.
+
+Why it looks the way it does:
+
+* A DDS topic needs a *sertype*. The binding builds one from an ``IdlStruct`` class: the type name
+  comes from ``__idl_typename__`` and the C layer validates every incoming/outgoing payload against
+  a descriptor derived from the class's XTypes type object. So for each ROS type we build an
+  ``IdlStruct`` that mirrors the ``.msg`` layout exactly (from ``types.py``'s message definitions)
+  and is named ``pkg::msg::dds_::Type_`` -- the name ROS RMWs use.
+* Samples are never converted by the binding's pure-Python codec: ``_clayer.ddspy_write`` takes
+  the CDR bytes (4-byte header included) as they are and ``ddspy_take`` returns them as received.
+  (De)serialisation is ``types.py`` (rosbags), about 10x faster than cyclonedds' codec.
+* XTypes: the binding always announces TypeInformation for the struct (it cannot create a topic
+  without). Because it mirrors the ROS type, it describes the real layout. ROS RMWs send none, so
+  they match us on topic + type name + QoS. On receipt we ignore TypeInformation from Cyclone and
+  Fast DDS peers (``Compatibility/IgnoreTypeInformation``), i.e. we match on names like ROS does;
+  that also sidesteps the 0.10.x/11.x uint8/int8/bool type-object disagreement.
+* ``_clayer`` is private API: this module is tested against the pinned 11.0.1.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+import weakref
+from typing import Any, Callable, Sequence
+
+from ambiegen_ros.ros.qos import Qos
+
+from .base import (EndpointInfo, Node, Publisher, Subscription, Timer, TransportError)
+
+try:  # import-time failure is reported by available_backends()/create_node, not here
+    import cyclonedds  # noqa: F401
+    import cyclonedds.idl.types as _idl_t
+    from cyclonedds._clayer import ddspy_take, ddspy_write
+    from cyclonedds.builtin import (BuiltinDataReader, BuiltinTopicDcpsPublication,
+                                    BuiltinTopicDcpsSubscription)
+    from cyclonedds.core import (GuardCondition, InstanceState, Policy, ReadCondition, SampleState,
+                                 ViewState, WaitSet)
+    from cyclonedds.core import Qos as _DdsQos
+    from cyclonedds.domain import Domain, DomainParticipant
+    from cyclonedds.idl import make_idl_struct
+    from cyclonedds.internal import dds_infinity
+    from cyclonedds.pub import DataWriter
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+    IMPORT_ERROR: Exception | None = None
+except Exception as _exc:  # pragma: no cover - exercised only where cyclonedds is missing
+    IMPORT_ERROR = _exc
+
+PINNED_VERSION = "11.0.1"
+BACKEND_NAME = "dds"
+# Vendor ids whose XTypes TypeInformation we ignore when matching: 1.15 eProsima Fast DDS,
+# 1.16 Eclipse Cyclone DDS. Override with AMBIEGEN_DDS_IGNORE_TYPEINFO ("" = use XTypes matching).
+DEFAULT_IGNORE_TYPEINFO = "1.15,1.16"
+TAKE_BATCH = 256
+# rmw_dds_common graph topic: lets `ros2 node list` / rqt_graph show our nodes.
+DISCOVERY_TOPIC = "ros_discovery_info"
+DISCOVERY_TYPE = "rmw_dds_common/msg/ParticipantEntitiesInfo"
+WAIT_SLICE_NS = 100_000_000  # bound each wait so Python signal handlers run promptly
+
+_BASE_TYPES = {}
+if IMPORT_ERROR is None:
+    _BASE_TYPES = {
+        "bool": bool, "byte": _idl_t.byte, "char": _idl_t.uint8,
+        "int8": _idl_t.int8, "uint8": _idl_t.uint8, "int16": _idl_t.int16, "uint16": _idl_t.uint16,
+        "int32": _idl_t.int32, "uint32": _idl_t.uint32, "int64": _idl_t.int64, "uint64": _idl_t.uint64,
+        "float32": _idl_t.float32, "float64": _idl_t.float64,
+    }
+
+
+def is_available() -> bool:
+    return IMPORT_ERROR is None
+
+
+def unavailable_reason() -> str:
+    return "" if IMPORT_ERROR is None else f"{type(IMPORT_ERROR).__name__}: {IMPORT_ERROR}"
+
+
+# ---------------------------------------------------------------------------------------------
+# names and types
+
+
+def ros_topic_to_dds(fqn: str) -> str:
+    """'/a/b' -> 'rt/a/b' (topics; services would use rq/rr)."""
+    return "rt" + fqn
+
+
+def dds_topic_to_ros(name: str) -> str | None:
+    """'rt/a/b' -> '/a/b'; None for non-topic DDS names (services, ros_discovery_info, ...)."""
+    return name[2:] if name.startswith("rt/") else None
+
+
+def dds_type_to_ros(type_name: str) -> str:
+    """'nav_msgs::msg::dds_::OccupancyGrid_' -> 'nav_msgs/msg/OccupancyGrid'."""
+    parts = [p for p in type_name.split("::") if p != "dds_"]
+    if parts and parts[-1].endswith("_"):
+        parts[-1] = parts[-1][:-1]
+    return "/".join(parts)
+
+
+def _types_module():
+    from ambiegen_ros.ros import types as _types  # written by another module owner
+    return _types
+
+
+class IdlMirror:
+    """Builds (and caches) one ``IdlStruct`` per ROS type mirroring its .msg layout."""
+
+    def __init__(self, registry, dds_type_name: Callable[[str], str]):
+        self._registry = registry
+        self._dds_name = dds_type_name
+        self._fields: dict[str, list] = {}
+        self._classes: dict[str, type] = {}
+        self._lock = threading.Lock()
+
+    def get(self, typename: str) -> type:
+        with self._lock:
+            return self._get(typename)
+
+    def _get(self, typename: str) -> type:
+        cls = self._classes.get(typename)
+        if cls is not None:
+            return cls
+        if typename not in self._fields:
+            self._load(typename)
+        fields = {fname: self._convert(typename, fname, desc) for fname, desc in self._fields[typename]}
+        short = typename.rsplit("/", 1)[-1] + "_"
+        cls = make_idl_struct(short, self._dds_name(typename), fields)
+        self._classes[typename] = cls
+        return cls
+
+    def _load(self, typename: str) -> None:
+        from rosbags.typesys import get_types_from_msg
+        text = self._registry.msgdef(typename)
+        if isinstance(text, tuple):
+            text = text[0]
+        for name, (_consts, fields) in get_types_from_msg(text, typename).items():
+            self._fields.setdefault(name, fields)
+        if typename not in self._fields:
+            raise TransportError(f"message definition of {typename} does not define it")
+
+    def _convert(self, owner: str, fname: str, desc) -> Any:
+        kind, arg = desc
+        kname = getattr(kind, "name", str(kind)).upper()
+        if kname == "BASE":
+            base, bound = arg
+            if base == "string":
+                return _idl_t.bounded_str[bound] if bound else str
+            if base in _BASE_TYPES:
+                return _BASE_TYPES[base]
+            raise TransportError(f"{owner}.{fname}: type {base!r} is not supported by the DDS backend")
+        if kname == "NAME":
+            return self._get(arg)
+        if kname == "ARRAY":
+            sub, length = arg
+            return _idl_t.array[self._convert(owner, fname, sub), length]
+        if kname == "SEQUENCE":
+            sub, bound = arg
+            inner = self._convert(owner, fname, sub)
+            return _idl_t.sequence[inner, bound] if bound else _idl_t.sequence[inner]
+        raise TransportError(f"{owner}.{fname}: unknown field kind {kname}")
+
+
+def pad_cdr(data) -> bytes:
+    """Pad CDR to a multiple of 4 and record the count in the encapsulation options' low bits.
+
+    RTPS carries payloads in 4-byte units, so the receiver sees the padding anyway; announcing
+    it (XTypes 7.6.3.1.2, as Cyclone's and Fast DDS' own serialisers do) lets receivers -- ours
+    included -- recover the exact original bytes.
+    """
+    pad = -len(data) % 4
+    if not pad or len(data) < 4:
+        return data
+    b = bytearray(data)
+    b[3] = (b[3] & 0xFC) | pad
+    b.extend(bytes(pad))
+    return bytes(b)
+
+
+def unpad_cdr(data: bytes) -> bytes:
+    """Inverse of ``pad_cdr``: drop the announced trailing padding and clear the bits."""
+    pad = data[3] & 3
+    if not pad or len(data) - 4 < pad:
+        return data
+    b = bytearray(data[: len(data) - pad])
+    b[3] &= 0xFC
+    return bytes(b)
+
+
+# ---------------------------------------------------------------------------------------------
+# QoS
+
+
+def dds_qos(qos: Qos, type_hash: str = "") -> "_DdsQos":
+    """Endpoint QoS as rmw_cyclonedds_cpp (Jazzy) builds it, plus the REP 2011 type hash."""
+    policies = [
+        Policy.History.KeepLast(max(1, int(qos.depth))),
+        Policy.Reliability.Reliable(max_blocking_time=dds_infinity) if qos.reliable
+        else Policy.Reliability.BestEffort,
+        Policy.DataRepresentation(use_cdrv0_representation=True),
+    ]
+    if qos.transient_local:
+        policies.append(Policy.Durability.TransientLocal)
+        # Cyclone keeps late-joiner history per the durability service, not the writer history.
+        policies.append(Policy.DurabilityService(
+            cleanup_delay=0, history=Policy.History.KeepLast(max(1, int(qos.depth))),
+            max_samples=-1, max_instances=-1, max_samples_per_instance=-1))
+    else:
+        policies.append(Policy.Durability.Volatile)
+    if type_hash:
+        policies.append(Policy.Userdata(f"typehash={type_hash};".encode("ascii")))
+    return _DdsQos(*policies)
+
+
+def qos_from_dds(dq) -> tuple[Qos, bool, str]:
+    """(Qos, keep_all, type_hash) from a discovered endpoint's QoS."""
+    rel = dq[Policy.Reliability] if dq is not None else None
+    dur = dq[Policy.Durability] if dq is not None else None
+    hist = dq[Policy.History] if dq is not None else None
+    ud = dq[Policy.Userdata] if dq is not None else None
+    # DDS defaults when a policy is absent: writers reliable, readers best effort; volatile; keep last 1.
+    reliable = rel is not None and rel != Policy.Reliability.BestEffort
+    transient = dur is not None and dur == Policy.Durability.TransientLocal
+    keep_all = hist is not None and hist == Policy.History.KeepAll
+    depth = getattr(hist, "depth", 1) if hist is not None and not keep_all else (0 if keep_all else 1)
+    type_hash = ""
+    if ud is not None:
+        for item in bytes(ud.data).decode("utf-8", "replace").split(";"):
+            if item.startswith("typehash="):
+                type_hash = item[len("typehash="):]
+    return Qos(reliable=reliable, transient_local=transient, depth=depth), keep_all, type_hash
+
+
+# ---------------------------------------------------------------------------------------------
+# process-wide state: configured domains, signal handling
+
+_domains: dict[int, Any] = {}
+_domains_lock = threading.Lock()
+_live_nodes: "weakref.WeakSet[DdsNode]" = weakref.WeakSet()
+_prev_handlers: dict[int, Any] = {}
+_signal_count = 0
+
+
+def domain_config() -> str:
+    """Cyclone config: the user's CYCLONEDDS_URI (if any) plus our compatibility fragment."""
+    ignore = os.environ.get("AMBIEGEN_DDS_IGNORE_TYPEINFO", DEFAULT_IGNORE_TYPEINFO).strip()
+    user = os.environ.get("CYCLONEDDS_URI", "").strip()
+    parts = [user] if user else []
+    if ignore:
+        parts.append('<CycloneDDS><Domain Id="any"><Compatibility><IgnoreTypeInformation>'
+                     f"{ignore}</IgnoreTypeInformation></Compatibility></Domain></CycloneDDS>")
+    return ",".join(parts)
+
+
+def domain_id_from_env() -> int:
+    raw = os.environ.get("ROS_DOMAIN_ID", "").strip()
+    if not raw:
+        return 0
+    try:
+        did = int(raw)
+    except ValueError:
+        raise TransportError(f"ROS_DOMAIN_ID={raw!r} is not an integer") from None
+    if not 0 <= did <= 232:
+        raise TransportError(f"ROS_DOMAIN_ID={did} is outside 0..232")
+    return did
+
+
+def _ensure_domain(domain_id: int) -> None:
+    with _domains_lock:
+        if domain_id in _domains:
+            return
+        cfg = domain_config()
+        _domains[domain_id] = Domain(domain_id, cfg) if cfg else None
+
+
+def _on_signal(signum, frame) -> None:
+    global _signal_count
+    _signal_count += 1
+    if _signal_count > 1 and signum == signal.SIGINT:
+        raise KeyboardInterrupt  # a second Ctrl-C escapes a stuck callback
+    for node in list(_live_nodes):
+        node._request_stop()
+
+
+def _install_signal_handlers() -> None:
+    if threading.current_thread() is not threading.main_thread() or _prev_handlers:
+        return
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            _prev_handlers[sig] = signal.signal(sig, _on_signal)
+        except (ValueError, OSError):  # pragma: no cover - embedded interpreters
+            pass
+
+
+def _restore_signal_handlers() -> None:
+    global _signal_count
+    if threading.current_thread() is not threading.main_thread():
+        return
+    for sig, handler in list(_prev_handlers.items()):
+        try:
+            signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
+        except (ValueError, OSError):  # pragma: no cover
+            pass
+    _prev_handlers.clear()
+    _signal_count = 0
+
+
+# ---------------------------------------------------------------------------------------------
+# entities
+
+def _any_mask() -> int:
+    return SampleState.Any | ViewState.Any | InstanceState.Any
+
+
+class DdsPublisher(Publisher):
+    def __init__(self, node: "DdsNode", typename: str, topic: str, qos: Qos, writer):
+        self._node = node
+        self.typename = typename
+        self.topic = topic
+        self.qos = qos
+        self._writer = writer
+        self._ref = writer._ref
+        self._registry = node._registry
+
+    def publish(self, msg: Any) -> None:
+        self.publish_raw(self._registry.serialize(msg, self.typename))
+
+    def publish_raw(self, data: bytes) -> None:
+        if self._writer is None:
+            raise TransportError(f"publisher on {self.topic} was destroyed")
+        rc = ddspy_write(self._ref, pad_cdr(data))
+        if rc < 0:
+            hint = " (payload does not match the type's layout)" if rc == -3 else ""
+            raise TransportError(f"DDS write on {self.topic} failed with code {rc}{hint}")
+
+    def subscription_count(self) -> int:
+        if self._writer is None:
+            return 0
+        return int(self._writer.get_publication_matched_status().current_count)
+
+    def destroy(self) -> None:
+        if self._writer is not None:
+            self._node._pubs.discard(self)
+            self._writer.__del__()
+            self._writer = None
+            self._node._announce_graph()
+
+
+class DdsSubscription(Subscription):
+    def __init__(self, node: "DdsNode", typename: str, topic: str, qos: Qos, raw: bool,
+                 callback: Callable, reader):
+        self._node = node
+        self.typename = typename
+        self.topic = topic
+        self.qos = qos
+        self.raw = raw
+        self._callback = callback
+        self._reader = reader
+        self._ref = reader._ref
+        self._cond = ReadCondition(reader, _any_mask())
+        self._deserialize = node._registry.deserialize
+
+    def _drain(self) -> int:
+        """Take what is queued and run the callback per valid sample; returns samples taken."""
+        if self._reader is None:
+            return 0
+        got = ddspy_take(self._ref, _any_mask(), TAKE_BATCH)
+        if isinstance(got, int):
+            raise TransportError(f"DDS take on {self.topic} failed with code {got}")
+        if not got:
+            return 0
+        now = time.time_ns()
+        cb = self._callback
+        for data, info in got:
+            if not info.valid_data:  # writer gone / disposed: no payload
+                continue
+            if len(data) > 4 and data[3] & 3:
+                data = unpad_cdr(data)
+            if self.raw:
+                cb(data, now)
+            else:
+                cb(self._deserialize(data, self.typename))
+        return len(got)
+
+    def destroy(self) -> None:
+        if self._reader is not None:
+            self._node._detach_sub(self)
+            self._reader = None
+
+
+class DdsTimer(Timer):
+    def __init__(self, period_s: float, callback: Callable[[], None]):
+        if not period_s > 0:
+            raise ValueError("timer period must be > 0")
+        self.period_s = float(period_s)
+        self._period_ns = int(period_s * 1e9)
+        self._callback = callback
+        self._next = time.monotonic_ns() + self._period_ns
+        self._canceled = False
+
+    def cancel(self) -> None:
+        self._canceled = True
+
+    def is_canceled(self) -> bool:
+        return self._canceled
+
+    def _due(self, now: int) -> bool:
+        return not self._canceled and now >= self._next
+
+    def _fire(self, now: int) -> None:
+        self._next += self._period_ns
+        if self._next <= now:  # fell behind: skip missed periods instead of bursting
+            self._next = now + self._period_ns
+        self._callback()
+
+
+class DdsNode(Node):
+    backend_name = BACKEND_NAME
+
+    def __init__(self, name: str, namespace: str = "", argv: Sequence[str] | None = None,
+                 parameter_overrides: dict[str, Any] | None = None):
+        if IMPORT_ERROR is not None:
+            from .base import BackendUnavailable
+            raise BackendUnavailable(f"DDS backend needs cyclonedds=={PINNED_VERSION}: {unavailable_reason()}")
+        super().__init__(name, namespace, argv, parameter_overrides)
+        self._param_values = None
+        types = _types_module()
+        self._registry = types.get_registry()
+        self._mirror = _mirror_for(self._registry, types.dds_type_name)
+        self._domain_id = domain_id_from_env()
+        _ensure_domain(self._domain_id)
+        self._dp = DomainParticipant(self._domain_id, qos=_DdsQos(Policy.Userdata(b"enclave=/;")))
+        self._ws = WaitSet(self._dp)
+        self._guard = GuardCondition(self._dp)
+        self._ws.attach(self._guard)
+        self._topics: dict[str, tuple[Any, str]] = {}
+        self._pubs: set = set()
+        self._subs: list[DdsSubscription] = []
+        self._timers: list[DdsTimer] = []
+        self._builtin: dict[str, tuple[Any, Any]] = {}
+        self._stop = False
+        self._closed = False
+        self._graph_writer = None
+        self._graph_reader = None
+        self._endpoint_nodes: dict[bytes, tuple[str, str]] = {}
+        self._announce_graph()
+        _live_nodes.add(self)
+        _install_signal_handlers()
+
+    # -- ROS graph announcement --------------------------------------------------------------------
+    def _announce_graph(self) -> None:
+        """Publish ParticipantEntitiesInfo (latched) the way rmw_cyclonedds/rmw_fastrtps do.
+
+        ROS tools read node names and each node's endpoint GIDs (16-byte DDS GUIDs in Jazzy)
+        from it; topics themselves are discovered through DDS builtin topics either way.
+        """
+        reg = self._registry
+        try:
+            if self._graph_writer is None:
+                if not reg.has(DISCOVERY_TYPE):
+                    return
+                t = Topic(self._dp, DISCOVERY_TOPIC, self._mirror.get(DISCOVERY_TYPE),
+                          qos=_DdsQos(Policy.DataRepresentation(use_cdrv0_representation=True)))
+                self._graph_writer = DataWriter(self._dp, t, qos=dds_qos(
+                    Qos(reliable=True, transient_local=True, depth=1), reg.type_hash(DISCOVERY_TYPE)))
+                # created now so peers' latched announcements are already here when asked for
+                self._graph_reader = DataReader(self._dp, t, qos=dds_qos(
+                    Qos(reliable=True, transient_local=True, depth=1000), reg.type_hash(DISCOVERY_TYPE)))
+
+            def gid(entity):
+                return reg.new("rmw_dds_common/msg/Gid", data=list(entity.guid.bytes))
+
+            node_info = reg.new(
+                "rmw_dds_common/msg/NodeEntitiesInfo", node_namespace=self.namespace, node_name=self.name,
+                reader_gid_seq=[gid(s._reader) for s in self._subs if s._reader is not None],
+                writer_gid_seq=[gid(p._writer) for p in self._pubs if p._writer is not None])
+            msg = reg.new(DISCOVERY_TYPE, gid=gid(self._dp), node_entities_info_seq=[node_info])
+            ddspy_write(self._graph_writer._ref, pad_cdr(reg.serialize(msg, DISCOVERY_TYPE)))
+        except Exception as exc:  # graph cosmetics must never stop a node
+            self.logger.warning(f"could not announce node on {DISCOVERY_TOPIC}: {exc}")
+
+    # -- parameters ------------------------------------------------------------------------------
+    def _parameter_source(self, name, default, description):
+        if self._param_values is None:
+            from .params import resolve_parameters
+            self._param_values = resolve_parameters(self._ros_args, self.fully_qualified_name,
+                                                    self._overrides)
+        if name in self._param_values:
+            return True, self._param_values[name]
+        return False, None
+
+    # -- entities --------------------------------------------------------------------------------
+    def _check_open(self) -> None:
+        if self._closed:
+            raise TransportError(f"node {self.fully_qualified_name} is shut down")
+
+    def _topic(self, typename: str, fqn: str):
+        dds_name = ros_topic_to_dds(fqn)
+        hit = self._topics.get(dds_name)
+        if hit is not None:
+            if hit[1] != typename:
+                raise TransportError(f"topic {fqn} is already used with type {hit[1]}, not {typename}")
+            return hit[0]
+        if not self._registry.has(typename):
+            raise TransportError(f"unknown message type {typename!r}")
+        cls = self._mirror.get(typename)
+        try:
+            topic = Topic(self._dp, dds_name, cls,
+                          qos=_DdsQos(Policy.DataRepresentation(use_cdrv0_representation=True)))
+        except Exception as exc:
+            raise TransportError(f"cannot create DDS topic {dds_name} ({typename}): {exc}") from exc
+        self._topics[dds_name] = (topic, typename)
+        return topic
+
+    def create_publisher(self, typename: str, topic: str, qos: Qos) -> DdsPublisher:
+        self._check_open()
+        fqn = self.resolve_topic_name(topic)
+        t = self._topic(typename, fqn)
+        writer = DataWriter(self._dp, t, qos=dds_qos(qos, self._registry.type_hash(typename)))
+        pub = DdsPublisher(self, typename, fqn, qos, writer)
+        self._pubs.add(pub)
+        self._announce_graph()
+        return pub
+
+    def create_subscription(self, typename: str, topic: str, callback: Callable[..., None],
+                            qos: Qos, raw: bool = False) -> DdsSubscription:
+        self._check_open()
+        fqn = self.resolve_topic_name(topic)
+        t = self._topic(typename, fqn)
+        reader = DataReader(self._dp, t, qos=dds_qos(qos, self._registry.type_hash(typename)))
+        sub = DdsSubscription(self, typename, fqn, qos, raw, callback, reader)
+        self._ws.attach(sub._cond)
+        self._subs.append(sub)
+        self._announce_graph()
+        return sub
+
+    def _detach_sub(self, sub: DdsSubscription) -> None:
+        try:
+            self._ws.detach(sub._cond)
+        finally:
+            if sub in self._subs:
+                self._subs.remove(sub)
+            sub._cond.__del__()
+            sub._reader.__del__()
+            self._announce_graph()
+
+    def create_timer(self, period_s: float, callback: Callable[[], None]) -> DdsTimer:
+        self._check_open()
+        t = DdsTimer(period_s, callback)
+        self._timers.append(t)
+        return t
+
+    def now_ns(self) -> int:
+        return time.time_ns()
+
+    def new_message(self, typename: str, **fields: Any) -> Any:
+        return self._registry.new(typename, **fields)
+
+    # -- graph -----------------------------------------------------------------------------------
+    def _builtin_samples(self, which: str) -> list:
+        self._check_open()
+        if which not in self._builtin:
+            topic = BuiltinTopicDcpsPublication if which == "pub" else BuiltinTopicDcpsSubscription
+            rd = BuiltinDataReader(self._dp, topic)
+            cond = ReadCondition(rd, SampleState.Any | ViewState.Any | InstanceState.Alive)
+            self._builtin[which] = (rd, cond)
+        rd, cond = self._builtin[which]
+        return rd.read(N=100_000, condition=cond)
+
+    def topic_names_and_types(self) -> list[tuple[str, list[str]]]:
+        found: dict[str, set[str]] = {}
+        for which in ("pub", "sub"):
+            for ep in self._builtin_samples(which):
+                ros = dds_topic_to_ros(ep.topic_name)
+                if ros is None:
+                    continue
+                found.setdefault(ros, set()).add(dds_type_to_ros(ep.type_name))
+        return [(name, sorted(types)) for name, types in sorted(found.items())]
+
+    def _refresh_endpoint_nodes(self) -> None:
+        """Endpoint GUID -> (namespace, node) from peers' ros_discovery_info announcements."""
+        reg = self._registry
+        if self._graph_reader is None:
+            return
+        while True:
+            got = ddspy_take(self._graph_reader._ref, _any_mask(), TAKE_BATCH)
+            if isinstance(got, int) or not got:
+                return
+            for data, info in got:
+                if not info.valid_data:
+                    continue
+                msg = reg.deserialize(data, DISCOVERY_TYPE)
+                for node in msg.node_entities_info_seq:
+                    who = (node.node_namespace, node.node_name)
+                    for g in list(node.writer_gid_seq) + list(node.reader_gid_seq):
+                        self._endpoint_nodes[bytes(bytearray(g.data))] = who
+
+    def publishers_info(self, topic: str) -> list[EndpointInfo]:
+        fqn = self.resolve_topic_name(topic)
+        dds_name = ros_topic_to_dds(fqn)
+        eps = [ep for ep in self._builtin_samples("pub") if ep.topic_name == dds_name]
+        if eps:
+            self._refresh_endpoint_nodes()
+        out = []
+        for ep in eps:
+            qos, keep_all, type_hash = qos_from_dds(ep.qos)
+            ns, node = self._endpoint_nodes.get(ep.key.bytes, ("", ""))
+            out.append(EndpointInfo(topic=fqn, typename=dds_type_to_ros(ep.type_name), qos=qos,
+                                    keep_all=keep_all, type_hash=type_hash, node_name=node,
+                                    node_namespace=ns))
+        return out
+
+    # -- execution -------------------------------------------------------------------------------
+    def _request_stop(self) -> None:
+        """Signal-safe: flag and wake the wait set; entities stay usable for finalisation."""
+        self._stop = True
+        try:
+            self._guard.set(True)
+        except Exception:  # pragma: no cover - node already deleted
+            pass
+
+    def ok(self) -> bool:
+        return not self._stop and not self._closed
+
+    def request_shutdown(self) -> None:
+        self._request_stop()
+
+    def _run_ready(self) -> int:
+        """One fair round: a batch from every reader, then every due timer. Returns work done."""
+        done = 0
+        for sub in list(self._subs):
+            if self._stop:
+                return done
+            done += sub._drain()
+        now = time.monotonic_ns()
+        for t in list(self._timers):
+            if self._stop:
+                return done
+            if t._due(now):
+                t._fire(now)
+                done += 1
+        if any(t.is_canceled() for t in self._timers):
+            self._timers = [t for t in self._timers if not t.is_canceled()]
+        return done
+
+    def _wait_ns(self, deadline_ns: int | None) -> int:
+        now = time.monotonic_ns()
+        wait = WAIT_SLICE_NS
+        for t in self._timers:
+            if not t._canceled:
+                wait = min(wait, t._next - now)
+        if deadline_ns is not None:
+            wait = min(wait, deadline_ns - now)
+        return max(0, wait)
+
+    def _spin_some(self, deadline_ns: int | None, once: bool) -> None:
+        while not self._stop and not self._closed:
+            if self._run_ready() and once:
+                return
+            if deadline_ns is not None and time.monotonic_ns() >= deadline_ns:
+                return
+            wait = self._wait_ns(deadline_ns)
+            if wait > 0 and not self._stop:
+                self._ws.wait(wait)
+
+    def spin(self) -> None:
+        try:
+            self._spin_some(None, once=False)
+        except KeyboardInterrupt:
+            self._request_stop()
+
+    def spin_once(self, timeout_s: float | None = None) -> None:
+        deadline = None if timeout_s is None else time.monotonic_ns() + int(max(0.0, timeout_s) * 1e9)
+        try:
+            self._spin_some(deadline, once=True)
+        except KeyboardInterrupt:
+            self._request_stop()
+
+    def shutdown(self) -> None:
+        if self._closed:
+            return
+        self._request_stop()
+        self._closed = True
+        for sub in list(self._subs):
+            sub._reader = None
+        self._subs.clear()
+        self._pubs.clear()
+        self._timers.clear()
+        self._builtin.clear()
+        self._topics.clear()
+        self._graph_writer = None
+        self._graph_reader = None
+        dp, self._dp = self._dp, None
+        self._ws = None
+        self._guard = None
+        try:
+            dp.__del__()  # dds_delete on the participant removes all its children at once
+        except Exception:  # pragma: no cover
+            pass
+        _live_nodes.discard(self)
+        if not _live_nodes:
+            _restore_signal_handlers()
+
+
+_mirrors: dict[int, IdlMirror] = {}
+
+
+def _mirror_for(registry, dds_type_name) -> IdlMirror:
+    m = _mirrors.get(id(registry))
+    if m is None:
+        m = _mirrors[id(registry)] = IdlMirror(registry, dds_type_name)
+    return m

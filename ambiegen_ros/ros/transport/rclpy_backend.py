@@ -1,0 +1,258 @@
+"""rclpy (ROS 2 Jazzy) backend: a thin adapter from the seam's ``Node`` to ``rclpy.node.Node``.
+
+Import-safe without ROS: rclpy and friends are imported inside functions, so this module (its QoS
+table, availability probe) loads and is unit-tested on machines without rclpy. Jazzy idioms:
+``rclpy.init()`` returns None; spin inside ``try/except (KeyboardInterrupt,
+ExternalShutdownException)``; ``node.destroy_node()`` then ``rclpy.try_shutdown()``.
+"""
+from __future__ import annotations
+
+import importlib.util
+import time
+from typing import Any, Callable, Sequence
+
+from ambiegen_ros.ros.qos import Qos
+
+from .base import BackendUnavailable, EndpointInfo, Node, Publisher, Subscription, Timer
+
+BACKEND_NAME = "rclpy"
+_import_error: str | None = None
+
+
+def is_available() -> bool:
+    """True when ``import rclpy`` works (checked once, without initialising ROS)."""
+    global _import_error
+    if _import_error is None:
+        try:
+            if importlib.util.find_spec("rclpy") is None:
+                _import_error = "ModuleNotFoundError: No module named 'rclpy'"
+            else:
+                import rclpy  # noqa: F401
+                _import_error = ""
+        except Exception as exc:  # a broken ROS install raises other errors
+            _import_error = f"{type(exc).__name__}: {exc}"
+    return _import_error == ""
+
+
+def unavailable_reason() -> str:
+    is_available()
+    return _import_error or ""
+
+
+# ---------------------------------------------------------------------------------------------
+# QoS mapping (pure data, testable without rclpy)
+
+
+def qos_profile_kwargs(qos: Qos) -> dict[str, Any]:
+    """Policy names/values for ``rclpy.qos.QoSProfile``, as strings (no rclpy needed)."""
+    return {
+        "history": "keep_last",
+        "depth": max(1, int(qos.depth)),
+        "reliability": "reliable" if qos.reliable else "best_effort",
+        "durability": "transient_local" if qos.transient_local else "volatile",
+    }
+
+
+def to_rclpy_qos(qos: Qos):
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    kw = qos_profile_kwargs(qos)
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=kw["depth"],
+        reliability=ReliabilityPolicy.RELIABLE if qos.reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=(DurabilityPolicy.TRANSIENT_LOCAL if qos.transient_local
+                    else DurabilityPolicy.VOLATILE),
+    )
+
+
+def qos_from_profile_fields(reliability: str, durability: str, history: str, depth: int) -> tuple[Qos, bool]:
+    """(Qos, keep_all) from lower-case policy names (e.g. ``ReliabilityPolicy.RELIABLE.name.lower()``)."""
+    keep_all = history.lower() == "keep_all"
+    return (Qos(reliable=reliability.lower() == "reliable",
+                transient_local=durability.lower() == "transient_local",
+                depth=0 if keep_all else int(depth)), keep_all)
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+class _RclpyPublisher(Publisher):
+    def __init__(self, pub, typename: str, topic: str, qos: Qos):
+        self._pub = pub
+        self.typename = typename
+        self.topic = topic
+        self.qos = qos
+
+    def publish(self, msg: Any) -> None:
+        self._pub.publish(msg)
+
+    def publish_raw(self, data: bytes) -> None:
+        # rclpy.Publisher.publish sends ``bytes`` through rcl_publish_serialized_message.
+        self._pub.publish(bytes(data))
+
+    def subscription_count(self) -> int:
+        return int(self._pub.get_subscription_count())
+
+
+class _RclpySubscription(Subscription):
+    def __init__(self, sub, typename: str, topic: str, qos: Qos, raw: bool):
+        self._sub = sub
+        self.typename = typename
+        self.topic = topic
+        self.qos = qos
+        self.raw = raw
+
+
+class _RclpyTimer(Timer):
+    def __init__(self, timer, period_s: float):
+        self._timer = timer
+        self.period_s = period_s
+
+    def cancel(self) -> None:
+        self._timer.cancel()
+
+    def is_canceled(self) -> bool:
+        return bool(self._timer.is_canceled())
+
+
+_live = 0  # nodes alive on the default context; the last one shuts rclpy down
+
+
+class RclpyNode(Node):
+    backend_name = BACKEND_NAME
+
+    def __init__(self, name: str, namespace: str = "", argv: Sequence[str] | None = None,
+                 parameter_overrides: dict[str, Any] | None = None):
+        if not is_available():
+            raise BackendUnavailable(f"rclpy backend unavailable: {unavailable_reason()}")
+        super().__init__(name, namespace, argv, parameter_overrides)
+        global _live
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.parameter import Parameter
+
+        if not rclpy.ok():
+            rclpy.init(args=self._argv)  # Jazzy: returns None; installs SIGINT/SIGTERM handlers
+            cli_args = None
+        else:  # context exists (second node in the process): pass this node's own ROS args
+            cli_args = self._argv[1:] if len(self._argv) > 1 else None
+        overrides = [Parameter(k, value=v) for k, v in self._overrides.items()]
+        # rclpy applies remaps (__node, __ns, topics) and argv parameters itself.
+        self._node = rclpy.create_node(name, namespace=namespace or None, cli_args=cli_args,
+                                       parameter_overrides=overrides)
+        self._name = self._node.get_name()
+        self._namespace = self._node.get_namespace()
+        self._logger = self._node.get_logger()
+        self._executor = SingleThreadedExecutor()
+        self._executor.add_node(self._node)
+        self._stopped = False
+        self._closed = False
+        self._msg_classes: dict[str, Any] = {}
+        _live += 1
+
+    # -- parameters ------------------------------------------------------------------------------
+    def _parameter_source(self, name, default, description):
+        from rcl_interfaces.msg import ParameterDescriptor
+        # Dynamic typing lets the seam apply one type rule (params.coerce_parameter) on both
+        # backends; an empty-list default is declared untyped (rclpy cannot infer its type).
+        desc = ParameterDescriptor(description=description, dynamic_typing=True)
+        seed = None if (default is None or default == []) else default
+        param = self._node.declare_parameter(name, seed, desc)
+        value = param.value
+        if value is None:
+            return False, None
+        if isinstance(value, tuple) or type(value).__name__ == "array":
+            value = list(value)
+        return True, value
+
+    # -- communication --------------------------------------------------------------------------
+    def _msg_class(self, typename: str):
+        cls = self._msg_classes.get(typename)
+        if cls is None:
+            from rosidl_runtime_py.utilities import get_message
+            cls = self._msg_classes[typename] = get_message(typename)
+        return cls
+
+    def create_publisher(self, typename: str, topic: str, qos: Qos) -> Publisher:
+        pub = self._node.create_publisher(self._msg_class(typename), topic, to_rclpy_qos(qos))
+        return _RclpyPublisher(pub, typename, pub.topic_name, qos)
+
+    def create_subscription(self, typename: str, topic: str, callback: Callable[..., None],
+                            qos: Qos, raw: bool = False) -> Subscription:
+        if raw:
+            def cb(data, _cb=callback):
+                _cb(data, time.time_ns())
+        else:
+            cb = callback
+        sub = self._node.create_subscription(self._msg_class(typename), topic, cb,
+                                             to_rclpy_qos(qos), raw=raw)
+        return _RclpySubscription(sub, typename, sub.topic_name, qos, raw)
+
+    def create_timer(self, period_s: float, callback: Callable[[], None]) -> Timer:
+        return _RclpyTimer(self._node.create_timer(period_s, callback), period_s)
+
+    def now_ns(self) -> int:
+        return int(self._node.get_clock().now().nanoseconds)
+
+    def new_message(self, typename: str, **fields: Any) -> Any:
+        return self._msg_class(typename)(**fields)
+
+    def topic_names_and_types(self) -> list[tuple[str, list[str]]]:
+        return sorted((name, sorted(types)) for name, types in self._node.get_topic_names_and_types())
+
+    def publishers_info(self, topic: str) -> list[EndpointInfo]:
+        fqn = self.resolve_topic_name(topic)
+        out = []
+        for info in self._node.get_publishers_info_by_topic(fqn):
+            p = info.qos_profile
+            qos, keep_all = qos_from_profile_fields(p.reliability.name, p.durability.name,
+                                                    p.history.name, p.depth)
+            th = getattr(info, "topic_type_hash", "")
+            out.append(EndpointInfo(topic=fqn, typename=info.topic_type, qos=qos, keep_all=keep_all,
+                                    type_hash=str(th) if th else "", node_name=info.node_name,
+                                    node_namespace=info.node_namespace))
+        return out
+
+    def resolve_topic_name(self, topic: str) -> str:
+        resolve = getattr(self._node, "resolve_topic_name", None)  # rcl's own rules when present
+        return resolve(topic) if resolve is not None else super().resolve_topic_name(topic)
+
+    # -- execution -------------------------------------------------------------------------------
+    def _guarded(self, fn, *args) -> None:
+        from rclpy.executors import ExternalShutdownException
+        try:
+            fn(*args)
+        except (KeyboardInterrupt, ExternalShutdownException):
+            self._stopped = True
+
+    def spin(self) -> None:
+        # Our own loop over spin_once (not executor.spin) so request_shutdown() ends it too.
+        def loop():
+            while self.ok():
+                self._executor.spin_once(timeout_sec=0.1)
+        self._guarded(loop)
+
+    def spin_once(self, timeout_s: float | None = None) -> None:
+        self._guarded(self._executor.spin_once, timeout_s)
+
+    def ok(self) -> bool:
+        import rclpy
+        return not self._stopped and not self._closed and rclpy.ok()
+
+    def request_shutdown(self) -> None:
+        self._stopped = True
+
+    def shutdown(self) -> None:
+        global _live
+        if self._closed:
+            return
+        self._closed = True
+        import rclpy
+        try:
+            self._executor.remove_node(self._node)
+            self._executor.shutdown()
+            self._node.destroy_node()
+        finally:
+            _live -= 1
+            if _live <= 0:
+                rclpy.try_shutdown()

@@ -1,0 +1,1 @@
+"""Simulation nodes: thin ROS wrappers that execute scenarios with ``ambiegen_ros.sims``."""

@@ -1,0 +1,258 @@
+"""Thermostat case study: restrictions, simulation semantics, vectorised == reference, sampler, plot."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ambiegen_ros.core.attributes import ScenarioError
+from ambiegen_ros.core.scenario import Scenario
+from ambiegen_ros.problems.thermostat import (
+    ROOM_MODELS,
+    ThermostatConfig,
+    ThermostatProblem,
+    schedule_steps,
+    simulate_batch,
+    simulate_schedule,
+)
+
+
+def scenario(temps, durations, models) -> Scenario:
+    elements = [
+        {"temperature": t, "duration": d, "model": m} for t, d, m in zip(temps, durations, models)
+    ]
+    return Scenario("thermostat", elements)
+
+
+@pytest.fixture(scope="module")
+def problem() -> ThermostatProblem:
+    return ThermostatProblem()
+
+
+def test_declared_shape(problem):
+    assert problem.name == "thermostat"
+    assert [a.name for a in problem.attributes] == ["temperature", "duration", "model"]
+    assert (problem.m_min, problem.m_max) == (1, 24)
+    assert problem.alpha == 1.5
+    assert problem.paper_budget.evaluations == 50000
+
+
+# --- restrictions ------------------------------------------------------------------------------
+def test_r1_too_long_is_invalid(problem):
+    ev = problem.evaluate_scenarios([scenario([20] * 7, [240] * 7, [1] * 7)])  # 28 h
+    assert not ev.valid[0]
+    assert ev.f1[0] == 0.0
+    assert ev.reasons[0].startswith("R1")
+    assert "1680" in ev.reasons[0]
+    assert ev.metrics["duration_min"][0] == 1680
+
+
+def test_r1_exactly_24h_is_valid(problem):
+    ev = problem.evaluate_scenarios([scenario([20] * 6, [240] * 6, [1] * 6)])
+    assert ev.valid[0] and ev.reasons[0] is None and ev.f1[0] > 0
+
+
+def test_r2_jump_is_invalid_and_names_the_elements(problem):
+    ev = problem.evaluate_scenarios(
+        [
+            scenario([18, 19, 20, 25, 21], [60] * 5, [1] * 5),  # |25-20| = 5 between 2 and 3
+            scenario([18, 22, 18, 22], [60] * 4, [1] * 4),  # jumps of 4 are allowed
+        ]
+    )
+    assert not ev.valid[0] and ev.f1[0] == 0.0
+    assert ev.reasons[0].startswith("R2")
+    assert "elements[2] and elements[3]" in ev.reasons[0]
+    assert "|20-25|" in ev.reasons[0]
+    assert ev.valid[1] and ev.f1[1] > 0
+
+
+def test_out_of_domain_cell_is_invalid_not_a_crash(problem):
+    row = problem.codec.to_row(scenario([20, 21], [120, 120], [1, 2]))
+    row[1 + 1 * 3 + 2] = 9  # model 9 of element 1
+    ev = problem.evaluate_rows(row[None])
+    assert not ev.valid[0] and ev.f1[0] == 0.0
+    assert "elements[1].model" in ev.reasons[0]
+
+
+def test_invalid_rows_do_not_change_valid_results(problem):
+    good = scenario([20, 23, 19], [120, 240, 180], [3, 1, 5])
+    bad = scenario([16, 25], [60, 60], [1, 1])
+    alone = problem.evaluate_scenarios([good])
+    mixed = problem.evaluate_scenarios([bad, good, bad])
+    assert list(mixed.valid) == [False, True, False]
+    assert list(mixed.f1) == [0.0, alone.f1[0], 0.0]
+
+
+# --- simulation semantics ----------------------------------------------------------------------
+def test_first_steps_follow_the_paper_formulas():
+    """Start at the first goal with the heater ON; the first sample is after the first step."""
+    k_on1, k_on2, k_off1, k_off2 = ROOM_MODELS[0]
+    temps, heater = simulate_schedule([20.0] * 4, [1] * 4, return_heater=True)
+    t1 = 20.0 + k_on1 * (1 - math.exp(-k_on2))
+    assert temps[0] == pytest.approx(t1, abs=1e-12)
+    # t1 >= 20.1, so the heater switches OFF and a new phase starts from t1 with n = 1, 2
+    assert temps[1] == pytest.approx(t1 + k_off1 * math.exp(-k_off2) - k_off1, abs=1e-12)
+    assert temps[2] == pytest.approx(t1 + k_off1 * math.exp(-2 * k_off2) - k_off1, abs=1e-12)
+    assert list(heater[:3]) == [True, False, False]
+
+
+def test_model_change_without_switch_keeps_the_phase():
+    """A new element's model applies at once, but n and T0 continue (documented choice)."""
+    goals = [16.0, 25.0, 25.0, 25.0]
+    models = [1, 1, 1, 2]
+    temps = simulate_schedule(goals, models)
+    k1, k2 = ROOM_MODELS[0][:2]
+    assert temps[2] == pytest.approx(16 + k1 * (1 - math.exp(-3 * k2)), abs=1e-12)
+    k1, k2 = ROOM_MODELS[1][:2]
+    assert temps[3] == pytest.approx(16 + k1 * (1 - math.exp(-4 * k2)), abs=1e-12)
+    G = np.zeros((1, 24, 3))
+    G[0, :2] = [[16, 3, 1], [25, 9, 2]]  # 3 min then 9 min at step 3 min
+    run = simulate_batch(G, np.array([2]), ThermostatConfig(), record=True)
+    np.testing.assert_allclose(run.temperature[0, :4], simulate_schedule(goals, [1, 2, 2, 2]), atol=1e-12)
+
+
+def test_schedule_steps_maps_minutes_to_elements():
+    goals, models = schedule_steps([20, 22], [60, 75], [3, 4])
+    assert len(goals) == (60 + 75) // 3
+    assert list(goals[:20]) == [20] * 20 and list(goals[20:]) == [22] * 25
+    assert list(models[19:21]) == [3, 4]
+
+
+@pytest.mark.parametrize("model", range(1, 8))
+def test_trackable_schedules_have_small_rmse(problem, model):
+    constant = scenario([20] * 6, [240] * 6, [model] * 6)
+    gentle = scenario([20, 21, 22, 21, 20, 21, 22, 21], [180] * 8, [model] * 8)
+    ev = problem.evaluate_scenarios([constant, gentle])
+    assert ev.valid.all()
+    assert 0 < ev.f1[0] < 0.5 and 0 < ev.f1[1] < 0.5
+    assert np.all(ev.metrics["max_error"] >= ev.f1)
+
+
+def test_harsh_schedule_breaks_the_requirement(problem):
+    gentle = scenario([20, 21, 22, 21, 20, 21, 22, 21], [180] * 8, [1] * 8)
+    harsh = scenario([25, 21, 25, 21, 25, 21, 25, 21], [180] * 8, [1] * 8)  # slow cooling room
+    ev = problem.evaluate_scenarios([gentle, harsh])
+    assert ev.f1[1] > problem.config.requirement_rmse
+    assert ev.f1[1] > 3 * ev.f1[0]
+
+
+# --- vectorised == reference ---------------------------------------------------------------------
+def _reference_run(G, lengths, config):
+    out = []
+    for row, m in zip(G, lengths):
+        goals, models = schedule_steps(row[:m, 0], row[:m, 1], row[:m, 2], config)
+        out.append((goals, models, simulate_schedule(goals, models, config)))
+    return out
+
+
+@pytest.mark.parametrize("sampling", ["markov", "uniform"])
+def test_vectorised_matches_reference(sampling):
+    problem = ThermostatProblem(sampling=sampling)
+    G, lengths = problem.sample(50, np.random.default_rng(7))
+    # a few short schedules so rows end at different steps within one batch
+    G[:5, 3:] = 0.0
+    lengths[:5] = 3
+    G[5, 0, 1], lengths[5] = 60, 1
+    run = simulate_batch(G, lengths, problem.config, record=True)
+    for i, (goals, models, temps) in enumerate(_reference_run(G, lengths, problem.config)):
+        n = len(goals)
+        assert run.n_steps[i] == n
+        np.testing.assert_array_equal(run.goal[i, :n], goals)
+        np.testing.assert_array_equal(run.model[i, :n], models)
+        np.testing.assert_allclose(run.temperature[i, :n], temps, rtol=0, atol=1e-10)
+        err = temps - goals
+        assert run.rmse[i] == pytest.approx(np.sqrt(np.mean(err**2)), abs=1e-10)
+        assert run.max_error[i] == pytest.approx(np.abs(err).max(), abs=1e-10)
+
+
+def test_evaluate_matches_reference_rmse(problem):
+    G, lengths = problem.sample(50, np.random.default_rng(11))
+    ev = problem.evaluate(G, lengths)
+    assert ev.valid.all()
+    for i, (goals, _, temps) in enumerate(_reference_run(G, lengths, problem.config)):
+        assert ev.f1[i] == pytest.approx(np.sqrt(np.mean((temps - goals) ** 2)), abs=1e-10)
+
+
+# --- sampler -----------------------------------------------------------------------------------
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), sampling=st.sampled_from(["markov", "uniform"]))
+def test_sampler_is_domain_valid_and_fills_the_day(seed, sampling):
+    problem = ThermostatProblem(sampling=sampling)
+    G, lengths = problem.sample(64, np.random.default_rng(seed))
+    assert problem.codec.in_domain(G, lengths).all()
+    used = np.arange(problem.m_max)[None, :] < lengths[:, None]
+    assert np.all(G[~used] == 0)
+    total = np.where(used, G[:, :, 1], 0).sum(axis=1)
+    assert np.all(total <= 1440)
+    assert np.all(total > 1440 - 60)  # otherwise one more (shortened) element would have fitted
+    if sampling == "markov":
+        jumps = np.abs(np.diff(G[:, :, 0], axis=1))[used[:, 1:]]
+        assert np.all(jumps <= problem.config.markov_max_step)
+        assert problem.evaluate(G, lengths).valid.all()
+
+
+def test_markov_chain_mostly_switches_direction():
+    problem = ThermostatProblem()
+    G, lengths = problem.sample(2000, np.random.default_rng(3))
+    d = np.diff(G[:, :, 0], axis=1)
+    used = np.arange(1, problem.m_max)[None, :] < lengths[:, None]
+    d = np.where(used, d, 0)
+    # strict rises followed by strict falls (or vice versa) need a switch: P(switch) = 0.7
+    a, b = d[:, :-1], d[:, 1:]
+    both = (a != 0) & (b != 0) & used[:, 1:]
+    assert 0.5 < np.mean(np.sign(a[both]) != np.sign(b[both])) < 0.9
+
+
+def test_sampling_is_reproducible(problem):
+    a = problem.sample(20, np.random.default_rng(5))
+    b = problem.sample(20, np.random.default_rng(5))
+    np.testing.assert_array_equal(a[0], b[0])
+    np.testing.assert_array_equal(a[1], b[1])
+
+
+# --- environment, config, plot -----------------------------------------------------------------
+def test_environment_rmse_equals_f1(problem):
+    X = problem.sample_rows(10, np.random.default_rng(13))
+    ev = problem.evaluate_rows(X)
+    for i, sc in enumerate(problem.codec.from_rows(X)):
+        env = problem.environment(sc)
+        assert env.valid
+        assert env.rmse == pytest.approx(ev.f1[i], abs=1e-12)
+        assert env.max_error == pytest.approx(ev.metrics["max_error"][i], abs=1e-12)
+        assert env.minutes[-1] == sum(env.durations)
+        assert len(env.goal) == len(env.temperature) == len(env.heater) == len(env.model)
+        assert env.initial_temperature == env.setpoints[0]
+
+
+def test_environment_reports_invalid_schedules(problem):
+    env = problem.environment(scenario([16, 25], [60, 60], [1, 1]))
+    assert not env.valid and env.reason.startswith("R2")
+    assert env.rmse > 0  # still simulated, for inspection
+
+
+def test_config_from_dict_and_bad_values():
+    p = ThermostatProblem({"alpha": 2.0, "room_models": [list(r) for r in ROOM_MODELS]})
+    assert p.alpha == 2.0 and p.config.room_models == ROOM_MODELS
+    with pytest.raises(ScenarioError):
+        ThermostatProblem({"nope": 1})
+    with pytest.raises(ScenarioError):
+        ThermostatProblem(sampling="gaussian")
+    with pytest.raises(ScenarioError):
+        ThermostatProblem(room_models=ROOM_MODELS[:3])
+
+
+def test_plot_renders_png(problem, tmp_path):
+    from ambiegen_ros.viz.thermostat import plot_scenario
+
+    sc = scenario([25, 21, 24, 20], [240, 180, 240, 240], [1, 2, 7, 4])
+    fig = plot_scenario(problem, sc, title="harsh")
+    path = tmp_path / "thermostat.png"
+    fig.savefig(path)
+    assert path.stat().st_size > 5000
+    assert "RMSE" in fig.axes[0].get_title()
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
