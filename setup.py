@@ -33,7 +33,8 @@ setup(
         "PyYAML>=6.0",
         "mcap==1.6.0",
         "rosbags==0.11.9",  # CDR codec, Jazzy type store, RIHS01 hashes
-        "cyclonedds==11.0.1",  # one exact version for all our processes (wire-level type matching)
+        "cyclonedds==11.0.1",
+        "numba==0.68.1",  # the vehicle surrogate's car loop (numpy fallback kept); brings llvmlite  # one exact version for all our processes (wire-level type matching)
     ],
     extras_require={"test": ["pytest>=8", "hypothesis>=6.100", "mcap-ros2-support==0.6.0"]},
     zip_safe=True,
@@ -46,6 +47,7 @@ setup(
             "ambiegen = ambiegen_ros.cli:main",
             "generator = ambiegen_ros.nodes.generator:main",
             "recorder = ambiegen_ros.nodes.recorder:main",
+            "replay = ambiegen_ros.nodes.replay:main",
             "robot_sim = sim_nodes.robot_sim:main",
             "car_sim = sim_nodes.car_sim:main",
             "thermostat_sim = sim_nodes.thermostat_sim:main",

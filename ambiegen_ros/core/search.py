@@ -261,12 +261,16 @@ class Search:
         )
 
     def suite_population(self) -> Population:
-        """SO: the 10 best; MO: the feasible Pareto front; random: the 10 best samples."""
+        """SO: the 10 best; MO: the feasible Pareto front (F1 > alpha); random: the 10 best samples."""
         if self._algorithm is None:
             return self._archive
         pop = self._algorithm.pop
         if self._pymoo_problem.n_obj == 2:
-            return self._current_front(pop)
+            front = self._current_front(pop)
+            if len(front) == 0:  # nothing beat alpha yet: the unconstrained front (entries say feasible: false)
+                f1, f2 = pop.get("f1").astype(float), pop.get("f2").astype(float)
+                front = pop[non_dominated(f1, f2, np.ones(len(pop), dtype=bool))]
+            return front
         order = np.argsort(-pop.get("f1").astype(float), kind="stable")
         return pop[order[: self.settings.suite_size]]
 
@@ -280,6 +284,7 @@ class Search:
                 "rank": rank,
                 "f1": float(ind.get("f1")),
                 "f2": float(ind.get("f2")),
+                "feasible": bool(float(ind.get("f1")) > self.problem.alpha),
                 "valid": info.pop("valid"),
                 "reason": info.pop("reason"),
                 "metrics": {k: v for k, v in info.items() if k != "f1"},

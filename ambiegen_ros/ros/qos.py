@@ -52,3 +52,25 @@ def to_offered_qos_yaml(qos: Qos) -> str:
         f"\n  liveliness_lease_duration:{infinite}"
         "\n  avoid_ros_namespace_conventions: false"
     )
+
+
+def from_offered_qos_yaml(text: str) -> Qos:
+    """The first profile of an ``offered_qos_profiles`` text back as a ``Qos`` (for replay).
+
+    Accepts the lower-case names Jazzy writes and the numeric enums of older rosbag2 versions
+    (reliability 1 = reliable, 2 = best effort; durability 1 = transient local, 2 = volatile).
+    """
+    import yaml
+
+    profiles = yaml.safe_load(text) or []
+    if not profiles:
+        return DEFAULT
+    first = profiles[0]
+    reliability = first.get("reliability", "reliable")
+    durability = first.get("durability", "volatile")
+    depth = int(first.get("depth") or DEFAULT.depth)
+    return Qos(
+        reliable=reliability in ("reliable", 1, "system_default", 0),
+        transient_local=durability in ("transient_local", 1),
+        depth=max(depth, 1),
+    )

@@ -170,6 +170,7 @@ def test_search_respects_budget_and_reports_positive_objectives(algorithm):
         assert f1 == sorted(f1, reverse=True) and len(result.suite) <= 10
     else:
         assert all(v > PROBLEM.alpha for v in f1), "the MO suite is the feasible front"
+        assert all(e["feasible"] for e in result.suite)
     # F1 stored with the suite is the surrogate's value for that scenario
     scenarios = [PROBLEM.parse(e["scenario"]) for e in result.suite]
     assert np.allclose(PROBLEM.evaluate_scenarios(scenarios).f1, f1)

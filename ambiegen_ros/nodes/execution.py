@@ -1,0 +1,99 @@
+"""Executing scenarios on remote sim workers: publish, collect, re-assign, record timeouts.
+
+Shared by the generator and replay nodes. ``core.dispatch.Dispatcher`` decides who gets what and
+when to give up; this class only turns its decisions into messages and results into outcomes.
+Every scenario added ends in ``outcomes`` with the worker's outcome or a ``sim_timeout`` outcome
+that is also published as an explicit result record.
+"""
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from ..core.attributes import ScenarioError
+from ..core.dispatch import Dispatcher
+from ..problems.base import Problem
+from ..ros import conversions, topics
+from ..ros.conversions import ScenarioMeta
+from ..ros.qos import DEFAULT, STREAM
+from ..sims.outcome import Outcome
+
+DISPATCH_PARAMETERS = {
+    "result_timeout": (30.0, "seconds to wait for a scenario's result"),
+    "worker_timeout": (3.0, "a worker is dead after this many silent seconds"),
+    "worker_wait": (2.0, "with no worker known after this, offer scenarios to anyone"),
+    "max_attempts": (2, "attempts per scenario before recording a timeout"),
+    "max_in_flight": (8, "scenarios in flight per worker"),
+}
+
+
+class RemoteExecution:
+    def __init__(self, node: Any, problem: Problem, run_id: str):
+        self.node = node
+        self.problem = problem
+        self.run_id = run_id
+        values = {name: node.declare_parameter(name, default, text) for name, (default, text) in DISPATCH_PARAMETERS.items()}
+        self.dispatcher = Dispatcher(**values, start=time.monotonic())
+        self.pub_scenarios = node.create_publisher(
+            topics.SCENARIO_TYPES[problem.name], topics.scenarios(problem.name), STREAM
+        )
+        self.pub_results = node.create_publisher(topics.RESULT_TYPE, topics.RESULTS, STREAM)
+        node.create_subscription(topics.RESULT_TYPE, topics.RESULTS, self.on_result, STREAM)
+        node.create_subscription(topics.WORKERS_TYPE, topics.WORKERS, self.on_worker, DEFAULT)
+        self.scenarios: dict[int, tuple[Any, ScenarioMeta]] = {}
+        self.outcomes: dict[int, Outcome] = {}
+        self.workers: dict[int, str] = {}
+        self.published = 0
+        self.failures = 0
+        self.timeouts = 0
+        self.errors = 0
+
+    def add(self, scenario: Any, meta: ScenarioMeta) -> None:
+        self.scenarios[meta.scenario_id] = (scenario, meta)
+        self.dispatcher.add(meta.scenario_id, meta.scenario_id)
+
+    def begin(self) -> None:
+        self.dispatcher.begin(time.monotonic())
+
+    def done(self) -> bool:
+        return self.dispatcher.done()
+
+    def tick(self) -> None:
+        sent, given_up = self.dispatcher.tick(time.monotonic())
+        make, stamp = self.node.new_message, self.node.now_ns()
+        for assignment in sent:
+            scenario, meta = self.scenarios[assignment.scenario_id]
+            meta.worker, meta.attempt = assignment.worker, assignment.attempt
+            self.pub_scenarios.publish(conversions.scenario_message(make, stamp, self.problem, scenario, meta))
+            self.published += assignment.attempt == 1
+        for ticket in given_up:
+            outcome = Outcome.rejected(
+                f"no result after {ticket.attempts} attempt(s) (workers tried: {', '.join(ticket.tried) or 'any'})",
+                kind="sim_timeout",
+            )
+            self._settle(ticket.scenario_id, self.node.name, outcome)
+            self.pub_results.publish(
+                conversions.result_message(make, stamp, self.run_id, ticket.scenario_id, self.problem.name, self.node.name, outcome)
+            )
+
+    def on_result(self, msg: Any) -> None:
+        if msg.run_id != self.run_id or msg.worker == self.node.name:
+            return
+        if not self.dispatcher.result(int(msg.scenario_id), msg.worker):
+            return
+        try:
+            outcome = conversions.outcome_from_message(msg)
+        except ScenarioError as exc:
+            outcome = Outcome.rejected(f"unreadable result: {exc}", kind="error")
+        self._settle(int(msg.scenario_id), msg.worker, outcome)
+
+    def _settle(self, scenario_id: int, worker: str, outcome: Outcome) -> None:
+        self.outcomes[scenario_id] = outcome
+        self.workers[scenario_id] = worker
+        self.failures += outcome.failed
+        self.timeouts += outcome.failure_kind == "sim_timeout"
+        self.errors += outcome.failure_kind == "error"
+
+    def on_worker(self, msg: Any) -> None:
+        if msg.hardware_id == self.problem.name:
+            self.dispatcher.heartbeat(msg.name, time.monotonic())

@@ -1,0 +1,176 @@
+"""`replay`: bring a recorded run back onto the graph.
+
+* ``mode:=publish`` re-publishes the log's scenario messages byte for byte with the QoS they were
+  recorded with (``offered_qos_profiles``), at the recorded pace times ``rate`` (0 = at once).
+* ``mode:=execute`` re-executes the log's scenarios on the sim / SUT nodes running now (a new
+  run id, the same scenario ids), and writes a regression report comparing every new result with
+  the recorded one (verdict, failure kind, objectives). Run a recorder beside it to log the new
+  results; the report path is the ``report`` parameter.
+
+Also available as ``ambiegen replay LOG.mcap``.
+"""
+from __future__ import annotations
+
+import json
+import sys
+import time
+import uuid
+from pathlib import Path
+from typing import Any
+
+from mcap.reader import make_reader
+
+from ..core.attributes import ScenarioError
+from ..core.scenario import Scenario
+from ..problems import get_problem
+from ..ros import topics
+from ..ros.conversions import ScenarioMeta, outcome_from_message
+from ..ros.qos import from_offered_qos_yaml
+from ..ros.runlog import iter_messages
+from ..ros.transport import create_node
+from ..sims.outcome import Outcome
+from .execution import RemoteExecution
+
+SCENARIO_TOPICS = {topics.scenarios(p): p for p in topics.SCENARIO_TYPES}
+
+
+def recorded_scenarios(path: str | Path) -> tuple[str, str, dict[int, Scenario], dict[int, Outcome]]:
+    """(problem, old run id, scenarios by id, first recorded outcome by id) from a log."""
+    problem = run_id = ""
+    scenarios: dict[int, Scenario] = {}
+    outcomes: dict[int, Outcome] = {}
+    for topic, _, _, msg in iter_messages(path, set(SCENARIO_TOPICS) | {topics.RESULTS}):
+        if topic in SCENARIO_TOPICS:
+            meta = msg.meta
+            if not run_id:
+                run_id, problem = meta.run_id, SCENARIO_TOPICS[topic]
+            if meta.run_id == run_id and int(meta.scenario_id) not in scenarios:
+                data = Scenario.parse_json(meta.scenario_json)
+                scenarios[int(meta.scenario_id)] = Scenario(data["problem"], data["elements"])
+        elif msg.run_id == run_id and int(msg.scenario_id) not in outcomes:
+            outcomes[int(msg.scenario_id)] = outcome_from_message(msg)
+    if not scenarios:
+        raise ScenarioError("log", f"{path} holds no scenario messages", ", ".join(SCENARIO_TOPICS))
+    return problem, run_id, scenarios, outcomes
+
+
+def compare(old: Outcome | None, new: Outcome) -> dict[str, Any]:
+    """One scenario's regression entry: verdicts, kinds, objectives and whether anything changed."""
+    entry = {
+        "new": {"failed": new.failed, "failure_kind": new.failure_kind, "objectives": new.objectives},
+        "old": None if old is None else {"failed": old.failed, "failure_kind": old.failure_kind, "objectives": old.objectives},
+    }
+    if old is None:
+        entry["change"] = "no recorded result"
+    elif old.failure_kind != new.failure_kind or old.failed != new.failed:
+        entry["change"] = "verdict"
+    else:
+        deltas = {k: new.objectives[k] - v for k, v in old.objectives.items() if k in new.objectives}
+        entry["objective_deltas"] = deltas
+        entry["change"] = "objectives" if any(abs(d) > 1e-9 for d in deltas.values()) else "none"
+    return entry
+
+
+class Replay:
+    def __init__(self, argv: list[str] | None = None, node=None, log: str | None = None):
+        self.node = node or create_node("replay", argv=argv)
+        n = self.node
+        self.log = log or n.declare_parameter("log", "", "MCAP file of a recorded run")
+        self.mode = n.declare_parameter("mode", "publish", "publish | execute")
+        self.rate = n.declare_parameter("rate", 1.0, "publish: speed factor of the recorded pace (0 = at once)")
+        self.report_path = n.declare_parameter("report", "", "execute: JSON regression report ('' = next to the log)")
+        self.min_subscribers = n.declare_parameter("min_subscribers", 1, "subscribers to wait for before publishing")
+        self.subscriber_wait = n.declare_parameter("subscriber_wait", 10.0, "seconds to wait for them")
+        if not self.log or not Path(self.log).exists():
+            raise ScenarioError("log", f"no such MCAP file {self.log!r}")
+        if self.mode not in ("publish", "execute"):
+            raise ScenarioError("mode", f"unknown {self.mode!r}", "publish|execute")
+        self.report: dict[str, Any] | None = None
+        self.exit_code = 0
+
+    # --- publish: raw bytes, recorded QoS, recorded pace -----------------------------------------
+    def publish(self) -> int:
+        n = self.node
+        publishers: dict[str, Any] = {}
+        count = 0
+        first_log = first_wall = None
+        with open(self.log, "rb") as fh:
+            reader = make_reader(fh)
+            for schema, channel, message in reader.iter_messages(topics=list(SCENARIO_TOPICS), log_time_order=True):
+                if not n.ok():
+                    break
+                pub = publishers.get(channel.topic)
+                if pub is None:
+                    qos = from_offered_qos_yaml(channel.metadata.get("offered_qos_profiles", ""))
+                    pub = publishers[channel.topic] = n.create_publisher(schema.name, channel.topic, qos)
+                    n.wait_for_subscribers(pub, self.min_subscribers, self.subscriber_wait)
+                if self.rate > 0:
+                    if first_log is None:
+                        first_log, first_wall = message.log_time, time.monotonic()
+                    due = first_wall + (message.log_time - first_log) / 1e9 / self.rate
+                    n.spin_until(lambda: time.monotonic() >= due)
+                pub.publish_raw(message.data)
+                count += 1
+        n.spin_until(lambda: False, 0.5)  # let reliable writers deliver
+        n.logger.info(f"re-published {count} scenario messages from {self.log}")
+        return count
+
+    # --- execute: new results, compared with the recorded ones -----------------------------------
+    def execute(self) -> dict[str, Any]:
+        problem_name, old_run, scenarios, old = recorded_scenarios(self.log)
+        problem = get_problem(problem_name)
+        run_id = f"replay-{old_run}-{uuid.uuid4().hex[:6]}"
+        remote = RemoteExecution(self.node, problem, run_id)
+        for sid, scenario in sorted(scenarios.items()):
+            remote.add(problem.parse(scenario.to_dict()), ScenarioMeta(run_id, sid))
+        self.node.wait_for_subscribers(remote.pub_scenarios, self.min_subscribers, self.subscriber_wait)
+        remote.begin()
+        self.node.create_timer(0.01, remote.tick)
+        self.node.spin_until(remote.done)
+        entries = {sid: compare(old.get(sid), outcome) for sid, outcome in sorted(remote.outcomes.items())}
+        changes: dict[str, int] = {}
+        for entry in entries.values():
+            changes[entry["change"]] = changes.get(entry["change"], 0) + 1
+        report = {
+            "log": str(self.log),
+            "recorded_run_id": old_run,
+            "replay_run_id": run_id,
+            "problem": problem_name,
+            "scenarios": len(scenarios),
+            "settled": len(remote.outcomes),
+            "changes": changes,
+            "new_failures": sorted(s for s, e in entries.items() if e["old"] and not e["old"]["failed"] and e["new"]["failed"]),
+            "fixed_failures": sorted(s for s, e in entries.items() if e["old"] and e["old"]["failed"] and not e["new"]["failed"]),
+            "entries": {str(k): v for k, v in entries.items()},
+        }
+        path = Path(self.report_path) if self.report_path else Path(self.log).with_suffix(".replay.json")
+        path.write_text(json.dumps(report, indent=2) + "\n")
+        report["report"] = str(path)
+        self.node.logger.info(f"replayed {len(remote.outcomes)}/{len(scenarios)} scenarios; changes {changes}; report {path}")
+        self.report = report
+        return report
+
+    def run(self) -> int:
+        try:
+            if self.mode == "publish":
+                self.publish()
+            else:
+                report = self.execute()
+                self.exit_code = 0 if report["settled"] == report["scenarios"] else 1
+        finally:
+            self.node.spin_until(lambda: False, 0.3)
+            self.node.shutdown()
+        return self.exit_code
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        replay = Replay(argv)
+    except (ScenarioError, ValueError) as exc:
+        print(f"replay: error: {exc}", file=sys.stderr)
+        return 2
+    return replay.run()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

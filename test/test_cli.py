@@ -1,0 +1,129 @@
+"""The `ambiegen` command line as a user runs it: real subprocesses, real files."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROBOT_ELEMENT = {"type": "horizontal", "size": 10, "position": 12}
+
+
+def ambiegen(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "ambiegen_ros", *args], capture_output=True, text=True, timeout=300, cwd=cwd
+    )
+
+
+def robot_scenario(**changes) -> dict:
+    elements = [dict(ROBOT_ELEMENT, position=1 + (i * 7) % 48) for i in range(48)]
+    elements[3].update(changes)
+    return {"problem": "robot", "elements": elements}
+
+
+def write(tmp_path: Path, name: str, content) -> Path:
+    path = tmp_path / name
+    path.write_text(content if isinstance(content, str) else json.dumps(content))
+    return path
+
+
+def test_evaluate_json_output(tmp_path):
+    path = write(tmp_path, "s.json", robot_scenario())
+    out = ambiegen("evaluate", str(path), "--json")
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)
+    assert doc["problem"] == "robot"
+    assert isinstance(doc["valid"], bool)
+    assert (doc["reason"] is None) == doc["valid"]
+    assert doc["f1"] == 0.0 or doc["f1"] >= 47 * 2**0.5 - 1e-9
+
+
+def test_evaluate_thermostat_invalid_names_the_rule(tmp_path):
+    schedule = {
+        "problem": "thermostat",
+        "elements": [{"temperature": 16, "duration": 240, "model": 1}, {"temperature": 24, "duration": 240, "model": 2}],
+    }
+    out = ambiegen("evaluate", str(write(tmp_path, "t.json", schedule)), "--json")
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)
+    assert doc["valid"] is False and doc["f1"] == 0.0
+    assert "R2" in doc["reason"]
+
+
+@pytest.mark.parametrize(
+    "content, expected",
+    [
+        ('{"problem": "robot", "elements": [', "malformed JSON"),
+        ({"problem": "submarine", "elements": []}, "unknown problem"),
+        (robot_scenario(colour="red"), "elements[3].colour"),
+        (robot_scenario(size=99), "elements[3].size"),
+        (robot_scenario(size="ten"), "elements[3].size"),
+        (robot_scenario(type="diagonal"), "elements[3].type"),
+        ('{"problem": "robot", "elements": [{"type": "horizontal", "size": NaN, "position": 3}]}', "NaN"),
+        ({"problem": "thermostat", "elements": [{"temperature": 21.5, "duration": 60, "model": 1}]}, "elements[0].temperature"),
+        ({"problem": "robot", "elements": [ROBOT_ELEMENT]}, "elements"),
+    ],
+)
+def test_bad_input_exits_2_with_a_named_field(tmp_path, content, expected):
+    out = ambiegen("evaluate", str(write(tmp_path, "bad.json", content)))
+    assert out.returncode == 2
+    assert expected in out.stderr
+    assert "Traceback" not in out.stderr
+    assert "allowed" in out.stderr or "malformed" in out.stderr or "NaN" in out.stderr
+
+
+def test_missing_file_and_bad_options_exit_2(tmp_path):
+    assert ambiegen("evaluate", str(tmp_path / "nope.json")).returncode == 2
+    out = ambiegen("search", "--problem", "robot", "--evaluations", "0", "--out", str(tmp_path / "r"))
+    assert out.returncode == 2 and "evaluations" in out.stderr
+    out = ambiegen("search", "--problem", "plane", "--out", str(tmp_path / "r"))
+    assert out.returncode == 2
+
+
+def test_search_writes_a_complete_run_directory_and_same_seed_same_suite(tmp_path):
+    runs = []
+    for name in ("a", "b"):
+        out = ambiegen(
+            "search", "--problem", "thermostat", "--algorithm", "ga", "--evaluations", "600",
+            "--population", "50", "--offspring", "50", "--seed", "11", "--out", str(tmp_path / name),
+        )
+        assert out.returncode == 0, out.stderr
+        assert "600 evaluations" in out.stdout and "best F1" in out.stdout
+        runs.append(tmp_path / name)
+    for name in ("config.json", "suite.json", "history.csv", "convergence.png", "suite.png"):
+        assert (runs[0] / name).stat().st_size > 0, name
+    assert (runs[0] / "suite.json").read_bytes() == (runs[1] / "suite.json").read_bytes()
+    config = json.loads((runs[0] / "config.json").read_text())
+    assert config["seed"] == 11 and config["search"]["population"] == 50
+    assert config["problem_config"]["alpha"] == 1.5
+    suite = json.loads((runs[0] / "suite.json").read_text())["suite"]
+    assert len(suite) == 10 and all({"f1", "f2", "valid", "scenario"} <= set(e) for e in suite)
+    # a suite scenario is a valid input of `evaluate` and gets the same F1
+    path = write(tmp_path, "best.json", suite[0]["scenario"])
+    doc = json.loads(ambiegen("evaluate", str(path), "--json").stdout)
+    assert doc["f1"] == pytest.approx(suite[0]["f1"])
+
+
+def test_show_draws_scenarios_and_runs(tmp_path):
+    path = write(tmp_path, "s.json", robot_scenario())
+    out = ambiegen("show", str(path), "-o", str(tmp_path / "map.png"))
+    assert out.returncode == 0, out.stderr
+    assert (tmp_path / "map.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    run = tmp_path / "run"
+    assert ambiegen("search", "--problem", "robot", "--evaluations", "150", "--seed", "1", "--out", str(run), "--no-plots").returncode == 0
+    out = ambiegen("show", str(run), "-o", str(tmp_path / "fig.png"))
+    assert out.returncode == 0, out.stderr
+    assert (tmp_path / "fig_convergence.png").exists() and (tmp_path / "fig_suite.png").exists()
+
+
+def test_config_file_sets_problem_numbers(tmp_path):
+    cfg = write(tmp_path, "c.yaml", "problem: robot\nalgorithm: ga\nproblem_config:\n  alpha: 100.0\n")
+    out = ambiegen("search", "--config", str(cfg), "--evaluations", "120", "--seed", "2", "--out", str(tmp_path / "r"), "--no-plots")
+    assert out.returncode == 0, out.stderr
+    config = json.loads((tmp_path / "r" / "config.json").read_text())
+    assert config["problem_config"]["alpha"] == 100.0 and config["search"]["algorithm"] == "ga"
+    bad = write(tmp_path, "bad.yaml", "problem: robot\nproblem_config:\n  gravity: 9.8\n")
+    out = ambiegen("search", "--config", str(bad), "--out", str(tmp_path / "r2"))
+    assert out.returncode == 2 and "gravity" in out.stderr
