@@ -21,8 +21,10 @@ Simulation (all numbers in ``ThermostatConfig``), for steps s = 0, 1, ... of ``s
 Choices where the source is silent:
 
 * when an element boundary changes the room model without a switch, the running phase keeps its
-  ``n`` and ``T0`` but each step uses the coefficients of the element in effect at that step (the
-  room conditions changed; the controller did not act);
+  ``n``, ``T0`` and the coefficients of the model in effect when it started (``model_switch =
+  "phase"``, the default: the temperature stays continuous); the new model takes effect at the
+  next switch. ``model_switch = "step"`` instead evaluates each step with the current element's
+  coefficients, which makes the curve jump by up to ~2 degC at such boundaries;
 * schedules shorter than 24 h are simulated over their own length only;
 * invalid schedules (R1/R2 broken, or a cell outside its domain) get F1 = 0 and zero metrics
   except ``duration_min``; ``environment`` still simulates them and says why they are invalid;
@@ -71,6 +73,10 @@ class ThermostatConfig:
     p_stay: float = 0.3  # Markov chain: P(keep raising / lowering)
     markov_max_step: int = 4  # Markov chain: next temperature within t..t+4 (raise) / t-4..t (lower)
     room_models: tuple = ROOM_MODELS  # (k_on1, k_on2, k_off1, k_off2) for models 1..7
+    # which coefficients a running phase uses after an element changes the room model without a
+    # heater switch: "phase" = the model in effect when the phase started (continuous; default),
+    # "step" = the model of the current element (the curve jumps at the boundary)
+    model_switch: str = "phase"
 
     def __post_init__(self):
         # YAML / JSON give lists; keep the config hashable and the table well-formed.
@@ -82,6 +88,8 @@ class ThermostatConfig:
             raise ScenarioError("config.sampling", f"unknown sampling {self.sampling!r}", "markov|uniform")
         if not self.step_minutes > 0:
             raise ScenarioError("config.step_minutes", "must be positive")
+        if self.model_switch not in ("phase", "step"):
+            raise ScenarioError("config.model_switch", f"unknown value {self.model_switch!r}", "phase|step")
         if not 0.0 <= self.p_stay <= 1.0:
             raise ScenarioError("config.p_stay", "must be a probability", "0..1")
 
@@ -107,13 +115,15 @@ def simulate_schedule(
     on = True
     T0 = T
     n = 0
+    phase_model = models[0]
     for goal, model in zip(goals, models):
         if on and T >= goal + h:
-            on, T0, n = False, T, 0
+            on, T0, n, phase_model = False, T, 0, model
         elif not on and T < goal - h:
-            on, T0, n = True, T, 0
+            on, T0, n, phase_model = True, T, 0, model
         n += 1
-        k_on1, k_on2, k_off1, k_off2 = config.room_models[model - 1]
+        used = model if config.model_switch == "step" else phase_model
+        k_on1, k_on2, k_off1, k_off2 = config.room_models[used - 1]
         if on:
             T = k_on1 * (1.0 - math.exp(-k_on2 * n)) + T0
         else:
@@ -194,6 +204,8 @@ def simulate_batch(
     n = np.zeros(P)
     sw, tmp = np.empty(P, dtype=bool), np.empty(P, dtype=bool)
     A, x, d = np.empty(P), np.empty(P), np.empty(P)
+    latch = config.model_switch == "phase"
+    phase_A, phase_r = np.zeros(P), np.zeros(P)
     sumsq, maxabs = np.zeros(P), np.zeros(P)
     final_sumsq, final_maxabs = np.zeros(P), np.zeros(P)
     if record:
@@ -222,11 +234,18 @@ def simulate_batch(
         np.subtract(T, T0, out=d)
         d *= sw
         T0 += d
-        # T = T0 - A * expm1(-r * n)
+        # T = T0 - A * expm1(-r * n), (A, r) of the current element or latched at the phase start
         np.multiply(on, da, out=A)
         A += a_off
         np.multiply(on, dr, out=x)
         x += r_off
+        if latch:
+            if s == 0:
+                phase_A[:], phase_r[:] = A, x
+            else:
+                np.copyto(phase_A, A, where=sw)
+                np.copyto(phase_r, x, where=sw)
+            A[:], x[:] = phase_A, phase_r
         x *= n
         np.expm1(x, out=x)
         x *= A

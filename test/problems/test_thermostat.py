@@ -100,18 +100,25 @@ def test_first_steps_follow_the_paper_formulas():
 
 
 def test_model_change_without_switch_keeps_the_phase():
-    """A new element's model applies at once, but n and T0 continue (documented choice)."""
+    """n and T0 continue across a model change; "phase" keeps the phase's coefficients (continuous),
+    "step" applies the new element's coefficients at once (documented choices)."""
     goals = [16.0, 25.0, 25.0, 25.0]
     models = [1, 1, 1, 2]
-    temps = simulate_schedule(goals, models)
     k1, k2 = ROOM_MODELS[0][:2]
-    assert temps[2] == pytest.approx(16 + k1 * (1 - math.exp(-3 * k2)), abs=1e-12)
-    k1, k2 = ROOM_MODELS[1][:2]
-    assert temps[3] == pytest.approx(16 + k1 * (1 - math.exp(-4 * k2)), abs=1e-12)
+    for mode in ("phase", "step"):
+        temps = simulate_schedule(goals, models, ThermostatConfig(model_switch=mode))
+        assert temps[2] == pytest.approx(16 + k1 * (1 - math.exp(-3 * k2)), abs=1e-12)
+    phase = simulate_schedule(goals, models, ThermostatConfig(model_switch="phase"))
+    assert phase[3] == pytest.approx(16 + k1 * (1 - math.exp(-4 * k2)), abs=1e-12)
+    k1b, k2b = ROOM_MODELS[1][:2]
+    step = simulate_schedule(goals, models, ThermostatConfig(model_switch="step"))
+    assert step[3] == pytest.approx(16 + k1b * (1 - math.exp(-4 * k2b)), abs=1e-12)
     G = np.zeros((1, 24, 3))
     G[0, :2] = [[16, 3, 1], [25, 9, 2]]  # 3 min then 9 min at step 3 min
-    run = simulate_batch(G, np.array([2]), ThermostatConfig(), record=True)
-    np.testing.assert_allclose(run.temperature[0, :4], simulate_schedule(goals, [1, 2, 2, 2]), atol=1e-12)
+    for mode in ("phase", "step"):
+        config = ThermostatConfig(model_switch=mode)
+        run = simulate_batch(G, np.array([2]), config, record=True)
+        np.testing.assert_allclose(run.temperature[0, :4], simulate_schedule(goals, [1, 2, 2, 2], config), atol=1e-12)
 
 
 def test_schedule_steps_maps_minutes_to_elements():
@@ -148,9 +155,9 @@ def _reference_run(G, lengths, config):
     return out
 
 
-@pytest.mark.parametrize("sampling", ["markov", "uniform"])
-def test_vectorised_matches_reference(sampling):
-    problem = ThermostatProblem(sampling=sampling)
+@pytest.mark.parametrize("sampling, model_switch", [("markov", "phase"), ("uniform", "phase"), ("markov", "step")])
+def test_vectorised_matches_reference(sampling, model_switch):
+    problem = ThermostatProblem(sampling=sampling, model_switch=model_switch)
     G, lengths = problem.sample(50, np.random.default_rng(7))
     # a few short schedules so rows end at different steps within one batch
     G[:5, 3:] = 0.0
