@@ -6,7 +6,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-if command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = "0" ]; then
+SUDO=""
+if [ "$(id -u)" != "0" ] && command -v sudo >/dev/null 2>&1; then SUDO="sudo"; fi
+if command -v apt-get >/dev/null 2>&1 && { [ "$(id -u)" = "0" ] || [ -n "$SUDO" ]; }; then
   need=()
   for pkg in python3-rosidl python3-catkin-pkg python3-empy; do
     dpkg -s "$pkg" >/dev/null 2>&1 || need+=("$pkg")
@@ -15,11 +17,11 @@ if command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = "0" ]; then
   if [ ${#need[@]} -gt 0 ]; then
     echo "setup: apt-get install ${need[*]}"
     export DEBIAN_FRONTEND=noninteractive
-    apt-get update -qq
-    apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
+    $SUDO apt-get update -qq
+    $SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
   fi
 else
-  echo "setup: not root or no apt-get: skipping python3-rosidl (only test/ros/test_msgs.py needs it)"
+  echo "setup: no apt-get (or no root/sudo): skipping python3-rosidl (only test/ros/test_msgs.py needs it)"
 fi
 
 PY=${PYTHON:-python3}

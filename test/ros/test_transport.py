@@ -344,6 +344,10 @@ def _fake_rclpy(monkeypatch):
         def __init__(self, data=""):
             self.data = data
 
+        @classmethod
+        def get_fields_and_field_types(cls):  # every rosidl-generated class has it
+            return {"data": "string"}
+
     class Pub:
         def __init__(self, topic):
             self.topic_name = topic
@@ -698,3 +702,18 @@ def test_sigterm_ends_spin_cleanly(tmp_path):
 
 if __name__ == "__main__":
     sys.exit(_ROLES[sys.argv[1]](*sys.argv[2:]))
+
+
+def test_rclpy_values_are_adapted_to_generated_setters():
+    """numpy sequences -> lists (rclpy rejects ndarrays for unbounded sequences); int -> bytes for octet."""
+    import numpy as np
+
+    from ambiegen_ros.ros.transport.rclpy_backend import to_rclpy_value
+
+    data = to_rclpy_value(np.array([0, 100, -1], dtype=np.int8), "sequence<int8>")
+    assert data == [0, 100, -1] and all(type(v) is int for v in data)
+    assert to_rclpy_value(np.array([1.5]), "sequence<double>") == [1.5]
+    assert to_rclpy_value(0, "octet") == b"\x00"
+    assert to_rclpy_value(2, "int32") == 2
+    assert to_rclpy_value(True, "boolean") is True
+    assert to_rclpy_value("x", "string") == "x"

@@ -15,6 +15,19 @@ from ambiegen_ros.ros.qos import Qos
 
 from .base import BackendUnavailable, EndpointInfo, Node, Publisher, Subscription, Timer
 
+
+def to_rclpy_value(value: Any, ros_type: str) -> Any:
+    """Adapt a field value built for the DDS backend to rclpy's generated setters.
+
+    rclpy accepts numpy arrays only for fixed-size arrays (unbounded sequences want a list or an
+    ``array.array``), and ``byte`` (IDL ``octet``) fields want ``bytes`` of length 1.
+    """
+    if hasattr(value, "tolist") and hasattr(value, "dtype") and getattr(value, "ndim", 0) >= 1:
+        return value.tolist()
+    if ros_type == "octet" and isinstance(value, int) and not isinstance(value, bool):
+        return bytes([value])
+    return value
+
 BACKEND_NAME = "rclpy"
 _import_error: str | None = None
 
@@ -195,7 +208,9 @@ class RclpyNode(Node):
         return int(self._node.get_clock().now().nanoseconds)
 
     def new_message(self, typename: str, **fields: Any) -> Any:
-        return self._msg_class(typename)(**fields)
+        cls = self._msg_class(typename)
+        types = cls.get_fields_and_field_types()
+        return cls(**{name: to_rclpy_value(value, types.get(name, "")) for name, value in fields.items()})
 
     def topic_names_and_types(self) -> list[tuple[str, list[str]]]:
         return sorted((name, sorted(types)) for name, types in self._node.get_topic_names_and_types())
