@@ -90,6 +90,16 @@ class GenomeCodec:
             ok &= np.all(attr.in_domain(G[:, :, j]) | ~used, axis=1)
         return ok
 
+    def domain_reason(self, cells: np.ndarray, length: int) -> str:
+        """Why one genome (``(m_max, n_attr)`` cells) fails ``in_domain``, naming the first bad cell."""
+        if not self.m_min <= length <= self.m_max:
+            return f"domain: {length} elements (allowed {self.m_min}..{self.m_max})"
+        for i in range(length):
+            for j, attr in enumerate(self.attributes):
+                if not attr.in_domain(cells[i, j]):
+                    return f"domain: elements[{i}].{attr.name} = {cells[i, j]:g} ({attr.describe()})"
+        return "domain: cell outside its domain"
+
     # --- single scenarios ----------------------------------------------------------------
     def to_row(self, scenario: Scenario) -> np.ndarray:
         G = np.zeros((self.m_max, self.n_attr))

@@ -41,7 +41,6 @@ from .base import Budget, Evaluation, Problem
 HORIZONTAL, VERTICAL = 0, 1
 DIAGONAL_RULES = ("both_free", "one_free", "always")
 NO_PATH = "no path from start to goal"
-OUT_OF_DOMAIN = "genome outside the attribute domains"
 
 # The 8 moves as (dy, dx), ordered by the flat-index offset dy * W + dx so CSR rows come out sorted.
 _MOVES = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
@@ -348,8 +347,8 @@ class RobotProblem(Problem):
         in_domain = self.codec.in_domain(G, lengths)
         valid = np.isfinite(cells) & in_domain
         f1 = np.where(valid, cells * self.config.resolution, 0.0)
-        reasons = [None if ok else (OUT_OF_DOMAIN if not dom else NO_PATH)
-                   for ok, dom in zip(valid.tolist(), in_domain.tolist())]
+        reasons = [None if ok else (NO_PATH if dom else self.codec.domain_reason(G[i], int(lengths[i])))
+                   for i, (ok, dom) in enumerate(zip(valid.tolist(), in_domain.tolist()))]
         wall_cells = grids[:, 1:-1, 1:-1].sum(axis=(1, 2))
         return Evaluation(f1, valid, reasons, {"path_length": f1.copy(), "wall_cells": wall_cells})
 

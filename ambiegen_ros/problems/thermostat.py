@@ -416,7 +416,7 @@ class ThermostatProblem(Problem):
         for i in np.flatnonzero(~valid):
             parts = []
             if not domain_ok[i]:
-                parts.append(self._domain_reason(G[i], int(lengths[i])))
+                parts.append(self.codec.domain_reason(G[i], int(lengths[i])))
             else:
                 if not r1[i]:
                     parts.append(
@@ -430,15 +430,6 @@ class ThermostatProblem(Problem):
                     )
             reasons[i] = "; ".join(parts)
         return valid, reasons, total
-
-    def _domain_reason(self, row: np.ndarray, length: int) -> str:
-        if not self.m_min <= length <= self.m_max:
-            return f"domain: {length} elements (allowed {self.m_min}..{self.m_max})"
-        for i in range(length):
-            for j, attr in enumerate(self.attributes):
-                if not attr.in_domain(row[i, j]):
-                    return f"domain: elements[{i}].{attr.name} = {row[i, j]:g} ({attr.describe()})"
-        return "domain: cell outside its domain"
 
     def evaluate(self, G: np.ndarray, lengths: np.ndarray) -> Evaluation:
         """R1/R2 check, then one vectorised simulation of all valid rows; F1 = RMSE (0 if invalid)."""

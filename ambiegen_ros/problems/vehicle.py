@@ -777,15 +777,6 @@ class VehicleProblem(Problem):
         nodes, n_nodes = interpolate(spine, n_spine, self.config)
         return spine, n_spine, nodes, n_nodes
 
-    def _domain_reason(self, row: np.ndarray, length: int) -> str:
-        if not self.m_min <= length <= self.m_max:
-            return f"domain: {length} elements (allowed {self.m_min}..{self.m_max})"
-        for i in range(length):
-            for j, attr in enumerate(self.attributes):
-                if not attr.in_domain(row[i, j]):
-                    return f"domain: elements[{i}].{attr.name} = {row[i, j]:g} ({attr.describe()})"
-        return "domain: cell outside its domain"
-
     def evaluate(self, G: np.ndarray, lengths: np.ndarray) -> Evaluation:
         G = np.asarray(G, dtype=float)
         lengths = np.asarray(lengths, dtype=int)
@@ -796,7 +787,7 @@ class VehicleProblem(Problem):
         road_length = np.zeros(P)
         domain_ok = self.codec.in_domain(G, lengths)
         for i in np.flatnonzero(~domain_ok):
-            reasons[i] = self._domain_reason(G[i], int(lengths[i]))
+            reasons[i] = self.codec.domain_reason(G[i], int(lengths[i]))
         ok = np.flatnonzero(domain_ok)
         if len(ok):
             _, _, nodes, n_nodes = self.roads(G[ok], lengths[ok])
