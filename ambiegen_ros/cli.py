@@ -129,6 +129,15 @@ def cmd_show(args: argparse.Namespace) -> int:
         return 0
     problem, scenario = load_scenario_file(str(target))
     output = Path(args.output or target.with_suffix(".png"))
+    if args.execute:
+        from .sims.full_model import full_model_executor
+        from .viz.execution import save_execution_plot
+
+        outcome = full_model_executor(problem).execute(scenario, seed=args.seed)
+        save_execution_plot(problem, scenario, outcome, output)
+        verdict = f"FAILED ({outcome.failure_kind})" if outcome.failed else outcome.failure_kind
+        print(f"{output}  [{verdict}]")
+        return 0
     save_scenario_plot(problem, scenario, output)
     print(output)
     return 0
@@ -166,6 +175,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("show", help="picture of a scenario, or of a run directory (convergence + best scenarios)")
     p.add_argument("target", metavar="SCENARIO.json|RUN_DIR")
     p.add_argument("-o", "--output", metavar="FILE.png", help="output picture (run dirs: a file prefix)")
+    p.add_argument("--execute", action="store_true", help="run the scenario on its full-model simulator and draw the trajectory")
+    p.add_argument("--seed", type=int, default=0, help="simulator seed for --execute (default 0)")
     p.set_defaults(func=cmd_show)
 
     for register in EXTRA_COMMANDS:
@@ -179,7 +190,13 @@ def _ros_commands(sub) -> None:
     register_cli(sub)
 
 
-EXTRA_COMMANDS: list[Callable[[Any], None]] = [_ros_commands]
+def _execute_command(sub) -> None:
+    from .sims.cli import register_cli
+
+    register_cli(sub)
+
+
+EXTRA_COMMANDS: list[Callable[[Any], None]] = [_execute_command, _ros_commands]
 """Subcommand registrars of other modules (ROS campaign, recover, replay)."""
 
 

@@ -33,6 +33,12 @@ class Outcome:
     metrics: dict[str, Any] = field(default_factory=dict)
     trajectory: np.ndarray | None = None  # (K, 2) x/y in metres, or None
     elapsed_sec: float = 0.0
+    # Optional evidence from the full-model simulators (``sims.full_model``): time-stamped samples
+    # (robot/car: t, x, y, yaw, v; thermostat: t, temperature, measured, setpoint, heater; t in s)
+    # for publishing as nav_msgs/Odometry or sensor_msgs/Temperature, and where the run failed
+    # (x, y in metres; thermostat: hour, temperature of the largest error) for the plots.
+    timeline: dict[str, np.ndarray] | None = None
+    failure_point: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         if self.failure_kind not in FAILURE_KINDS:

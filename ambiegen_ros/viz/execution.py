@@ -1,0 +1,128 @@
+"""Picture of one full-model execution: the scenario, what the system did, and where it failed.
+
+robot: walls, the A* route's waypoints, the driven trajectory (coloured by time) and the failure
+point; vehicle: the road's two lanes, the car's path and the failure point; thermostat: the
+schedule, the true and the measured room temperature, heater-on periods and the worst error.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def _title(problem: Any, outcome: Any) -> str:
+    if outcome.failure_kind == "invalid_scenario":
+        return f"{problem.name}: not executed ({outcome.detail})"
+    verdict = f"FAILED: {outcome.failure_kind}" if outcome.failed else "passed"
+    return f"{problem.name} full model {verdict}\n{outcome.detail}"
+
+
+def _mark_failure(ax, outcome: Any) -> None:
+    if outcome.failure_point is not None:
+        x, y = outcome.failure_point
+        ax.plot([x], [y], "X", color="red", ms=14, mec="black", zorder=6, label=f"failure ({outcome.failure_kind})")
+
+
+def _robot(problem, scenario, outcome, ax) -> None:
+    from ..sims.robot import RobotSimConfig, plan_route
+
+    env = problem.environment(scenario)
+    res = env.resolution
+    h, w = env.grid.shape
+    ax.imshow(env.grid.astype(float), cmap="Greys", vmin=0, vmax=1, origin="lower",
+              extent=(0, w * res, 0, h * res), interpolation="nearest")
+    radius = float((outcome.metrics or {}).get("radius", RobotSimConfig().radius))
+    waypoints, _ = plan_route(env.grid, res, problem.config.start, problem.config.goal,
+                              RobotSimConfig(radius=radius), problem.config.diagonal)
+    if len(waypoints):
+        ax.plot(waypoints[:, 0], waypoints[:, 1], "--o", color="tab:blue", lw=1, ms=3, label="route (RDP waypoints)")
+    traj = outcome.trajectory
+    if traj is not None and len(traj):
+        t = outcome.timeline["t"] if outcome.timeline else np.arange(len(traj))
+        sc = ax.scatter(traj[:, 0], traj[:, 1], c=t, cmap="viridis", s=2, zorder=4)
+        ax.figure.colorbar(sc, ax=ax, fraction=0.046, pad=0.04, label="time [s]")
+    ax.plot(*env.start_m, "o", color="tab:green", ms=9, label="start")
+    ax.plot(*env.goal_m, "*", color="tab:red", ms=13, label="goal")
+    ax.set_xlim(0, w * res)
+    ax.set_ylim(0, h * res)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_aspect("equal")
+
+
+def _vehicle(problem, scenario, outcome, ax) -> None:
+    from ..sims.car import right_lane, road_of
+
+    road, _, _ = road_of(problem, scenario)
+    lane_width = float((outcome.metrics or {}).get("lane_width") or problem.config.lane_width)
+    right = right_lane(road, lane_width)
+    left = right_lane(road[::-1], lane_width)  # the opposite lane, seen from the other direction
+    for lane, color in ((right, "0.75"), (left, "0.88")):
+        poly = lane.polygon
+        for part in getattr(poly, "geoms", [poly]):
+            if hasattr(part, "exterior"):
+                xs, ys = part.exterior.xy
+                ax.fill(xs, ys, color=color, lw=0)
+    ax.plot(road[:, 0], road[:, 1], "--", color="goldenrod", lw=1, label="centre line")
+    ax.plot(right.centre[:, 0], right.centre[:, 1], ":", color="tab:blue", lw=1, label="right lane centre")
+    traj = outcome.trajectory
+    if traj is not None and len(traj):
+        ax.plot(traj[:, 0], traj[:, 1], "-", color="tab:purple", lw=1.8, label="car")
+    ax.plot(*road[0], "o", color="tab:green", ms=8, label="start")
+    ax.plot(*road[-1], "*", color="tab:red", ms=12, label="end")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_aspect("equal")
+
+
+def _thermostat(problem, scenario, outcome, ax) -> None:
+    tl = outcome.timeline or {}
+    if not tl:
+        ax.text(0.5, 0.5, "not executed", ha="center", va="center", transform=ax.transAxes)
+        return
+    hours = np.asarray(tl["t"]) / 3600.0
+    heater = np.asarray(tl["heater"]) > 0.5
+    padded = np.concatenate([[False], heater, [False]])
+    edges = np.flatnonzero(np.diff(padded.astype(np.int8)))
+    for a, b in zip(edges[0::2], edges[1::2]):
+        ax.axvspan(hours[a], hours[min(b, len(hours) - 1)], color="tab:orange", alpha=0.15, lw=0)
+    ax.step(hours, tl["setpoint"], where="post", color="tab:blue", lw=1.8, label="goal (schedule)")
+    ax.plot(hours, tl["measured"], color="0.6", lw=0.6, label="sensor")
+    ax.plot(hours, tl["temperature"], color="tab:red", lw=1.2, label="room")
+    ax.fill_between([], [], color="tab:orange", alpha=0.15, label="heater on")
+    ax.set_xlabel("time [h]")
+    ax.set_ylabel("temperature [degC]")
+    ax.grid(True, alpha=0.3)
+
+
+def plot_execution(problem: Any, scenario: Any, outcome: Any, ax=None):
+    """Draw one executed scenario; returns the axes (a new figure when ``ax`` is None)."""
+    if ax is None:
+        figsize = (10, 3.8) if problem.name == "thermostat" else (7, 6.5)
+        _, ax = plt.subplots(figsize=figsize, layout="constrained")
+    draw = {"robot": _robot, "vehicle": _vehicle, "thermostat": _thermostat}[problem.name]
+    draw(problem, scenario, outcome, ax)
+    _mark_failure(ax, outcome)
+    ax.set_title(_title(problem, outcome), fontsize=9)
+    ax.legend(loc="best", fontsize=7, framealpha=0.8)
+    return ax
+
+
+def save_execution_plot(problem: Any, scenario: Any, outcome: Any, path) -> Any:
+    """Write the picture to ``path`` (PNG); returns the path."""
+    from pathlib import Path
+
+    ax = plot_execution(problem, scenario, outcome)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    ax.figure.savefig(path, dpi=110)
+    plt.close(ax.figure)
+    return path
+
+
+__all__ = ["plot_execution", "save_execution_plot"]
