@@ -51,6 +51,8 @@ setup(
             "robot_sim = sim_nodes.robot_sim:main",
             "car_sim = sim_nodes.car_sim:main",
             "thermostat_sim = sim_nodes.thermostat_sim:main",
+            "sut_adapter = sim_nodes.sut_adapter:main",
+            "external_sim = sim_nodes.external_sim:main",
         ],
     },
 )

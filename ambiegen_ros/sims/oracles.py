@@ -1,0 +1,432 @@
+"""Failure oracles applied to observed trajectories (ROS-free).
+
+The full-model simulators judge their own runs step by step. A system under test from outside
+(``sim_nodes/sut_adapter.py``) only shows its odometry or temperature readings, so the same
+oracles are restated here over time-stamped samples, with the thresholds taken from the same
+config dataclasses (``RobotSimConfig``, ``CarSimConfig``, ``RoomSimConfig``) and the geometry from
+the simulators' own helpers (``robot.wall_distance``'s metric, ``car.right_lane``,
+``car.oob_fraction``, ``car._project``). Fed with a full-model timeline they give the full model's
+verdict (tested), which is what makes adapter results comparable with in-process ones.
+
+Judges are incremental: ``add(...)`` takes a batch of samples (numpy arrays; times in simulated
+seconds since the run started, increasing), works on the whole batch at once where the check
+allows (wall clearance, out-of-lane fraction, squared errors) and stops at the first event; the
+``judge_*`` functions wrap them for a complete series. Sample 0 is the start: like the
+simulators, only the robot's collision check applies to it. A series that ends without a verdict
+gives an ``error`` outcome naming why (``finish(reason)``), never a pass.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any, Sequence
+
+import numpy as np
+
+from . import car
+from .car import CarSimConfig
+from .outcome import Outcome
+from .robot import RobotSimConfig
+from .room import RoomSimConfig
+
+EPS_T = 1e-6  # time comparisons tolerate stamp rounding (nanosecond stamps of float seconds)
+
+
+def clearances(grid: np.ndarray, resolution: float, x: np.ndarray, y: np.ndarray, cells: int,
+               origin: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+    """``robot.wall_distance`` for many points at once: distance to the nearest occupied cell square
+    within ``cells`` cells (capped there), 0 for a point whose neighbourhood lies off the grid."""
+    grid = np.asarray(grid, dtype=bool)
+    H, W = grid.shape
+    x = np.asarray(x, dtype=float) - origin[0]
+    y = np.asarray(y, dtype=float) - origin[1]
+    cx = np.floor(x / resolution).astype(np.int64)
+    cy = np.floor(y / resolution).astype(np.int64)
+    off = np.arange(-cells, cells + 1)
+    gx_cells = cx[:, None] + off[None, :]  # (N, 2c+1)
+    gy_cells = cy[:, None] + off[None, :]
+    inside_x = (gx_cells >= 0) & (gx_cells < W)
+    inside_y = (gy_cells >= 0) & (gy_cells < H)
+    occ = (grid[np.clip(gy_cells, 0, H - 1)[:, :, None], np.clip(gx_cells, 0, W - 1)[:, None, :]]
+           & inside_y[:, :, None] & inside_x[:, None, :])  # (N, 2c+1 [y], 2c+1 [x])
+    ddx = np.maximum(np.abs(x[:, None] - (gx_cells + 0.5) * resolution) - 0.5 * resolution, 0.0)
+    ddy = np.maximum(np.abs(y[:, None] - (gy_cells + 0.5) * resolution) - 0.5 * resolution, 0.0)
+    dist = np.hypot(ddx[:, None, :], ddy[:, :, None])
+    cap = cells * resolution
+    out = np.where(occ, dist, np.inf).min(axis=(1, 2), initial=np.inf)
+    out = np.minimum(out, cap)
+    off_grid = ~inside_x.any(axis=1) | ~inside_y.any(axis=1)
+    return np.where(off_grid, 0.0, out)
+
+
+class _Judge:
+    """Shared bookkeeping: the verdict, the time of the last sample, errors and external reports."""
+
+    def __init__(self) -> None:
+        self.kind: str | None = None  # failure kind once decided ("none" = passed)
+        self.detail = ""
+        self.failure_point: tuple[float, float] | None = None
+        self.samples = 0
+        self.t_last = -math.inf
+
+    @property
+    def decided(self) -> bool:
+        return self.kind is not None
+
+    def _decide(self, kind: str, detail: str, point: tuple[float, float] | None = None) -> None:
+        self.kind, self.detail, self.failure_point = kind, detail, point
+
+    def fail(self, kind: str, detail: str) -> None:
+        """A verdict from outside the samples (a bumper report, an error); the first verdict stays."""
+        if not self.decided:
+            self._decide(kind, detail, self._last_point())
+
+    def finish(self, reason: str) -> None:
+        """The series ended (or was abandoned) without a verdict: an ``error`` naming ``reason``."""
+        if not self.decided:
+            self._decide("error", reason)
+
+    def _last_point(self) -> tuple[float, float] | None:
+        return None
+
+    def _outcome(self, objectives: dict[str, float], metrics: dict[str, Any], trajectory, timeline) -> Outcome:
+        if not self.decided:
+            self.finish(f"no verdict after {self.samples} samples")
+        return Outcome(
+            objectives=objectives if self.kind != "error" else {},
+            failed=self.kind not in ("none", "error"),
+            failure_kind=self.kind,
+            detail=self.detail,
+            metrics=metrics,
+            trajectory=trajectory,
+            timeline=timeline,
+            failure_point=self.failure_point,
+        )
+
+
+# --- robot -----------------------------------------------------------------------------------------
+class RobotJudge(_Judge):
+    """Collision (footprint disc on an occupied cell), success within ``goal_tolerance``, stall or
+    loiter (within ``stall_radius`` of one point for ``stall_time``), timeout (``timeout``)."""
+
+    def __init__(self, grid: np.ndarray, resolution: float, goal_xy: tuple[float, float],
+                 config: RobotSimConfig | None = None, origin: tuple[float, float] = (0.0, 0.0)):
+        super().__init__()
+        self.cfg = config or RobotSimConfig()
+        self.grid = np.asarray(grid, dtype=bool)
+        self.resolution = float(resolution)
+        self.goal = (float(goal_xy[0]), float(goal_xy[1]))
+        self.origin = (float(origin[0]), float(origin[1]))
+        self._t: list[np.ndarray] = []
+        self._xy: list[np.ndarray] = []
+        self.path_length = 0.0
+        self.min_clearance = math.inf
+        self._prev: tuple[float, float] | None = None
+        self._anchor = (0.0, 0.0, 0.0, 0.0)  # x, y, t, path length when anchored
+
+    def add(self, t, x, y) -> bool:
+        """Judge a batch of samples; returns True once decided (later samples are ignored)."""
+        if self.decided:
+            return True
+        t, x, y = (np.atleast_1d(np.asarray(a, dtype=float)) for a in (t, x, y))
+        if not len(t):
+            return False
+        cfg = self.cfg
+        clear = clearances(self.grid, self.resolution, x, y, cfg.clearance_cells, self.origin) - cfg.radius
+        gx, gy = self.goal
+        used = len(t)
+        for i in range(len(t)):
+            ti, xi, yi = float(t[i]), float(x[i]), float(y[i])
+            self.min_clearance = min(self.min_clearance, float(clear[i]))
+            if self._prev is None:  # the start: only the collision check applies
+                self._prev = (xi, yi)
+                self._anchor = (xi, yi, ti, 0.0)
+                self._t0 = ti
+                if clear[i] < 0:
+                    self._decide("collision", "the robot starts inside a wall", (xi, yi))
+                    used = i + 1
+                    break
+                continue
+            self.path_length += math.hypot(xi - self._prev[0], yi - self._prev[1])
+            self._prev = (xi, yi)
+            rel = ti - self._t0
+            if clear[i] < 0:
+                self._decide("collision", f"footprint touches a wall at ({xi:.2f}, {yi:.2f}) after {rel:.1f} s", (xi, yi))
+            elif math.hypot(gx - xi, gy - yi) <= cfg.goal_tolerance:
+                self._decide("none", f"goal reached in {rel:.1f} s")
+            else:
+                ax, ay, at, ap = self._anchor
+                if math.hypot(xi - ax, yi - ay) > cfg.stall_radius:
+                    self._anchor = (xi, yi, ti, self.path_length)
+                elif ti - at >= cfg.stall_time - EPS_T:
+                    moved = self.path_length - ap
+                    if moved < cfg.stall_radius:
+                        self._decide("stall", f"stalled near ({xi:.2f}, {yi:.2f}) for {cfg.stall_time:g} s", (xi, yi))
+                    else:
+                        self._decide("loiter", f"loitered within {cfg.stall_radius:g} m of ({ax:.2f}, {ay:.2f}) "
+                                               f"({moved:.1f} m driven)", (xi, yi))
+                if not self.decided and rel >= cfg.timeout - EPS_T:
+                    self._decide("timeout", f"goal not reached within {cfg.timeout:g} s", (xi, yi))
+            if self.decided:
+                used = i + 1
+                break
+        self._t.append(t[:used])
+        self._xy.append(np.column_stack([x[:used], y[:used]]))
+        self.samples += used
+        self.t_last = float(t[used - 1])
+        return self.decided
+
+    def _last_point(self):
+        return self._prev
+
+    @property
+    def elapsed(self) -> float:
+        """Simulated seconds covered so far."""
+        return 0.0 if self._prev is None else self.t_last - self._t0
+
+    def outcome(self) -> Outcome:
+        t = np.concatenate(self._t) if self._t else np.zeros(0)
+        xy = np.concatenate(self._xy) if self._xy else np.zeros((0, 2))
+        t_rel = t - t[0] if len(t) else t
+        time_s = float(t_rel[-1]) if len(t) else 0.0
+        success = self.kind == "none"
+        metrics = {
+            "outcome": {"none": "success"}.get(self.kind or "error", self.kind or "error"),
+            "time": time_s,
+            "path_length": self.path_length,
+            "min_clearance": float(self.min_clearance) if math.isfinite(self.min_clearance) else None,
+            "radius": self.cfg.radius,
+            "distance_to_goal": float(math.hypot(xy[-1, 0] - self.goal[0], xy[-1, 1] - self.goal[1])) if len(xy) else None,
+            "samples": self.samples,
+        }
+        return self._outcome(
+            {"robot_time": time_s if success else self.cfg.timeout}, metrics,
+            xy if len(xy) else None, {"t": t_rel, "x": xy[:, 0], "y": xy[:, 1]},
+        )
+
+
+def judge_robot(t, x, y, grid: np.ndarray, resolution: float, goal_xy: tuple[float, float],
+                config: RobotSimConfig | None = None, origin: tuple[float, float] = (0.0, 0.0)) -> Outcome:
+    """Judge a complete robot trajectory (times in simulated seconds, positions in the map frame)."""
+    judge = RobotJudge(grid, resolution, goal_xy, config, origin)
+    if not judge.add(t, x, y):
+        judge.finish(f"trajectory ends after {judge.elapsed:.1f} s without a verdict")
+    return judge.outcome()
+
+
+# --- car -------------------------------------------------------------------------------------------
+class CarJudge(_Judge):
+    """Out of lane (more than ``oob_tolerance`` of the box outside the right lane), stall (less than
+    ``stall_distance`` in ``stall_time``, measured at the rear axle), success within
+    ``goal_distance`` of the last road point near the road's end, timeout
+    (``timeout_base + road length / timeout_speed``). Samples are box centres with headings."""
+
+    def __init__(self, road: np.ndarray, lane_width: float, config: CarSimConfig | None = None):
+        super().__init__()
+        self.cfg = config or CarSimConfig()
+        self.lane = car.right_lane(np.asarray(road, dtype=float), self.cfg.lane_width or float(lane_width))
+        self.time_limit = self.cfg.timeout_base + float(self.lane.road_s[-1]) / self.cfg.timeout_speed
+        self.centre_ahead = self.cfg.length / 2 - self.cfg.rear_overhang
+        self._rows: list[np.ndarray] = []  # t, cx, cy, yaw, v, oob, offset, lane s
+        self._seg = 0
+        self._anchor: tuple[float, float, float] | None = None
+        self._t0 = 0.0
+        self._prev: tuple[float, float] | None = None
+
+    def add(self, t, x, y, yaw, v=None) -> bool:
+        if self.decided:
+            return True
+        t, x, y, yaw = (np.atleast_1d(np.asarray(a, dtype=float)) for a in (t, x, y, yaw))
+        if not len(t):
+            return False
+        v = np.full(len(t), np.nan) if v is None else np.atleast_1d(np.asarray(v, dtype=float))
+        cfg, lane = self.cfg, self.lane
+        oob = car.oob_fraction(lane, x, y, yaw, cfg.length, cfg.width)
+        rx = x - self.centre_ahead * np.cos(yaw)  # rear axle: where the simulator measures stall
+        ry = y - self.centre_ahead * np.sin(yaw)
+        goal = lane.road[-1]
+        total = float(lane.s[-1])
+        rows = np.zeros((len(t), 8))
+        used = len(t)
+        for i in range(len(t)):
+            ti = float(t[i])
+            self._seg, s_now, offset = car._project(lane, float(rx[i]), float(ry[i]), self._seg)
+            if self._anchor is None:  # the start
+                self._t0 = ti
+                self._anchor = (float(rx[i]), float(ry[i]), ti)
+                rows[i] = (ti, x[i], y[i], yaw[i], v[i], 0.0, offset, s_now)
+                self._prev = (float(x[i]), float(y[i]))
+                continue
+            rows[i] = (ti, x[i], y[i], yaw[i], v[i], oob[i], offset, s_now)
+            self._prev = (float(x[i]), float(y[i]))
+            rel = ti - self._t0
+            if oob[i] > cfg.oob_tolerance:  # wins ties with the other events, as in the simulator
+                arc = float(np.interp(s_now, lane.s, lane.road_s))
+                self._decide("out_of_lane", f"{oob[i]:.0%} of the car outside the right lane (tolerance "
+                                            f"{cfg.oob_tolerance:.0%}) at {arc:.1f} m along the road", self._prev)
+            elif math.hypot(x[i] - goal[0], y[i] - goal[1]) <= cfg.goal_distance and s_now >= total - 2 * cfg.goal_distance:
+                self._decide("none", f"last road point reached in {rel:.1f} s")
+            else:
+                ax, ay, at = self._anchor
+                if math.hypot(rx[i] - ax, ry[i] - ay) >= cfg.stall_distance:
+                    self._anchor = (float(rx[i]), float(ry[i]), ti)
+                elif ti - at >= cfg.stall_time - EPS_T:
+                    self._decide("stall", f"moved less than {cfg.stall_distance:g} m in {cfg.stall_time:g} s", self._prev)
+                if not self.decided and rel >= self.time_limit - EPS_T:
+                    self._decide("timeout", f"last road point not reached within {self.time_limit:.0f} s", self._prev)
+            if self.decided:
+                used = i + 1
+                break
+        self._rows.append(rows[:used])
+        self.samples += used
+        self.t_last = float(t[used - 1])
+        return self.decided
+
+    def _last_point(self):
+        return self._prev
+
+    @property
+    def elapsed(self) -> float:
+        return 0.0 if self._anchor is None else self.t_last - self._t0
+
+    def outcome(self) -> Outcome:
+        rows = np.concatenate(self._rows) if self._rows else np.zeros((0, 8))
+        lane = self.lane
+        oob = rows[:, 5]
+        touched = np.flatnonzero(oob > 0)
+        arc = lambda s: float(np.interp(s, lane.s, lane.road_s))  # noqa: E731
+        speeds = rows[:, 4]
+        metrics = {
+            "outcome": {"none": "success"}.get(self.kind or "error", self.kind or "error"),
+            "time": float(rows[-1, 0] - rows[0, 0]) if len(rows) else 0.0,
+            "max_oob": float(oob.max()) if len(oob) else 0.0,
+            "max_lateral_offset": float(np.abs(rows[:, 6]).max()) if len(rows) else 0.0,
+            "oob_arc_length": arc(rows[-1, 7]) if self.kind == "out_of_lane" else None,
+            "departure_arc_length": arc(rows[touched[0], 7]) if len(touched) else None,
+            "distance_driven": float(np.hypot(*np.diff(rows[:, 1:3], axis=0).T).sum()) if len(rows) > 1 else 0.0,
+            "max_speed": float(np.nanmax(speeds)) if len(speeds) and np.isfinite(speeds).any() else None,
+            "road_length": float(lane.road_s[-1]),
+            "oob_tolerance": self.cfg.oob_tolerance,
+            "lane_width": lane.width,
+            "samples": self.samples,
+        }
+        t_rel = rows[:, 0] - rows[0, 0] if len(rows) else rows[:, 0]
+        timeline = {"t": t_rel, "x": rows[:, 1], "y": rows[:, 2], "yaw": rows[:, 3], "v": rows[:, 4], "oob": oob}
+        return self._outcome({"vehicle_max_oob": metrics["max_oob"]}, metrics,
+                             rows[:, 1:3].copy() if len(rows) else None, timeline)
+
+
+def judge_car(t, x, y, yaw, road: np.ndarray, lane_width: float = 4.0, config: CarSimConfig | None = None,
+              v=None) -> Outcome:
+    """Judge a complete car trajectory: box centres and headings against the road's right lane."""
+    judge = CarJudge(road, lane_width, config)
+    if not judge.add(t, x, y, yaw, v):
+        judge.finish(f"trajectory ends after {judge.elapsed:.1f} s without a verdict")
+    return judge.outcome()
+
+
+# --- thermostat ------------------------------------------------------------------------------------
+class ThermostatJudge(_Judge):
+    """RMSE of the room temperature against the schedule, each sample weighted by the time since the
+    previous one and judged against the set point in effect just before it (for samples every
+    ``dt`` exactly the simulator's mean over steps); decided once the schedule's end is covered."""
+
+    def __init__(self, setpoints: Sequence[float], durations_min: Sequence[float],
+                 config: RoomSimConfig | None = None):
+        super().__init__()
+        self.cfg = config or RoomSimConfig()
+        self.setpoints = np.asarray(setpoints, dtype=float)
+        self.ends = np.cumsum(np.asarray(durations_min, dtype=float) * 60.0)
+        self.total = float(self.ends[-1]) if len(self.ends) else 0.0
+        self._t0: float | None = None
+        self._t_prev = 0.0
+        self._t: list[np.ndarray] = []
+        self._temp: list[np.ndarray] = []
+        self._err: list[np.ndarray] = []
+        self._w: list[np.ndarray] = []
+
+    def goal_before(self, t_rel: np.ndarray) -> np.ndarray:
+        """The set point in effect just before each time (seconds since the schedule started)."""
+        idx = np.minimum(np.searchsorted(self.ends, np.asarray(t_rel, dtype=float) - EPS_T, side="right"),
+                         len(self.ends) - 1)
+        return self.setpoints[idx]
+
+    def add(self, t, temperature) -> bool:
+        if self.decided:
+            return True
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        temp = np.atleast_1d(np.asarray(temperature, dtype=float))
+        if not len(t):
+            return False
+        if self._t0 is None:
+            self._t0 = float(t[0])
+        rel = t - self._t0
+        prev = np.concatenate([[self._t_prev], rel[:-1]])
+        keep = (prev < self.total - EPS_T) | (rel <= 0)  # samples whose interval starts inside the schedule
+        rel, prev, temp_k, t_k = rel[keep], prev[keep], temp[keep], t[keep]
+        if len(rel):
+            # a sample past the end counts only for the part of its interval inside the schedule
+            weight = np.maximum(np.minimum(rel, self.total) - prev, 0.0)
+            self._err.append(temp_k - self.goal_before(np.minimum(rel, self.total)))
+            self._w.append(weight)  # sample 0 (rel = 0) weighs nothing: it is the start
+            self._t.append(rel)
+            self._temp.append(temp_k)
+            self._t_prev = float(rel[-1])
+            self.samples += len(rel)
+            self.t_last = float(t_k[-1])
+        if self._t_prev >= self.total - EPS_T:
+            self._judge()
+        return self.decided
+
+    @property
+    def elapsed(self) -> float:
+        return self._t_prev
+
+    def _judge(self) -> None:
+        err, w = np.concatenate(self._err), np.concatenate(self._w)
+        covered = w.sum()
+        if covered <= 0:
+            self.finish("no temperature samples inside the schedule")
+            return
+        rmse = float(math.sqrt(float((w * err * err).sum()) / covered))
+        self.rmse = rmse
+        failed = rmse > self.cfg.requirement_rmse
+        worst = int(np.argmax(np.where(w > 0, np.abs(err), -1.0)))
+        t_rel, temp = np.concatenate(self._t), np.concatenate(self._temp)
+        self._worst = (float(t_rel[worst]), float(temp[worst]), float(abs(err[worst])))
+        detail = (f"RMSE {rmse:.2f} degC {'>' if failed else '<='} {self.cfg.requirement_rmse:g} degC "
+                  f"(worst {abs(err[worst]):.2f} degC at {t_rel[worst] / 3600:.2f} h)")
+        point = (t_rel[worst] / 3600.0, float(temp[worst])) if failed else None
+        self._decide("requirement" if failed else "none", detail, point)
+
+    def outcome(self) -> Outcome:
+        t = np.concatenate(self._t) if self._t else np.zeros(0)
+        temp = np.concatenate(self._temp) if self._temp else np.zeros(0)
+        err = np.concatenate(self._err) if self._err else np.zeros(0)
+        w = np.concatenate(self._w) if self._w else np.zeros(0)
+        band = self.cfg.band
+        rmse = getattr(self, "rmse", None)
+        metrics = {
+            "outcome": {"none": "success"}.get(self.kind or "error", self.kind or "error"),
+            "time": float(min(self._t_prev, self.total)),
+            "rmse": rmse,
+            "max_error": float(np.abs(err[w > 0]).max()) if (w > 0).any() else None,
+            "above_band_min": float(w[err > band].sum() / 60.0),
+            "below_band_min": float(w[err < -band].sum() / 60.0),
+            "duration_min": self.total / 60.0,
+            "samples": self.samples,
+        }
+        timeline = {"t": t, "temperature": temp, "setpoint": self.goal_before(t) if len(t) else t}
+        return self._outcome({"thermostat_rmse": rmse if rmse is not None else 0.0}, metrics, None, timeline)
+
+
+def judge_thermostat(t, temperature, setpoints: Sequence[float], durations_min: Sequence[float],
+                     config: RoomSimConfig | None = None) -> Outcome:
+    """Judge a complete temperature series (simulated seconds since the schedule started)."""
+    judge = ThermostatJudge(setpoints, durations_min, config)
+    if not judge.add(t, temperature):
+        judge.finish(f"temperature series ends after {judge.elapsed:.0f} s of a {judge.total:.0f} s schedule")
+    return judge.outcome()
+
+
+__all__ = ["CarJudge", "RobotJudge", "ThermostatJudge", "clearances", "judge_car", "judge_robot",
+           "judge_thermostat"]

@@ -1,0 +1,347 @@
+"""`external_sim`: our full-model simulators as someone else's stack would run them.
+
+It speaks only standard ROS topics (no ``ambiegen_msgs`` type), so it stands in for a Nav2 robot,
+a driving stack or a thermostat when proving ``sut_adapter`` end to end:
+
+* ``robot``: ``map_topic`` (``nav_msgs/OccupancyGrid``, latched), ``initialpose_topic``
+  (``geometry_msgs/PoseWithCovarianceStamped``), ``goal_topic`` (``geometry_msgs/PoseStamped``)
+  in; ``odom_topic`` (``nav_msgs/Odometry``, map frame) out. A goal starts a run: the whole run is
+  computed at once with ``sims.robot.navigate`` (blocking this node for up to a few seconds) and
+  then streamed at ``time_scale``. The initial heading is the simulator's own (towards its
+  route); the start pose's orientation is ignored. A new map or initial pose aborts the stream.
+* ``vehicle``: ``road_topic`` (``nav_msgs/Path``, latched) in; ``odom_topic`` out (pose = the
+  centre of the car's bounding box). A road starts a run (``sims.car.drive``), streamed likewise.
+* ``thermostat``: ``setpoint_topic`` (``std_msgs/Float64``) in, ``temperature_topic``
+  (``sensor_msgs/Temperature``: the true room temperature) out. The room is stepped live
+  (``SteppedRoom``: ``sims.room.heat`` one step at a time) at ``time_scale``, with whatever set
+  point has arrived. Two optional inputs a simulated room understands, empty names to ignore:
+  ``initial_temperature_topic`` (``std_msgs/Float64``: reset the room to this temperature and
+  start a new run) and ``room_model_topic`` (``std_msgs/UInt8``: room model 1..7 from now on;
+  default the ``room_model`` parameter). A run lasts at most ``max_duration`` simulated seconds.
+
+Clock: message stamps are this system's simulated clock, which starts at the wall time a run
+starts and then advances ``time_scale`` times faster than the wall clock (samples are published
+when the wall clock reaches them). Simulator numbers are parameters ``sim.<field>`` (every field
+of ``RobotSimConfig`` / ``CarSimConfig`` / ``RoomSimConfig``).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+from typing import Any
+
+import numpy as np
+
+from ambiegen_ros.core.attributes import ScenarioError
+from ambiegen_ros.core.config import ConfigError, load_config_file
+from ambiegen_ros.problems import get_problem
+from ambiegen_ros.ros import conversions
+from ambiegen_ros.ros.qos import DEFAULT, LATCHED, STREAM, Qos
+from ambiegen_ros.ros.transport import TransportError, create_node
+from ambiegen_ros.sims import car, robot
+from ambiegen_ros.sims.full_model import SIMULATORS
+from ambiegen_ros.sims.room import RoomSimConfig
+
+PROBLEMS = ("robot", "vehicle", "thermostat")
+
+
+class SteppedRoom:
+    """``sims.room.heat`` advanced one ``dt`` at a time, the set point and room model read at each
+    step (so they can change live); same controller, noise stream and integration."""
+
+    def __init__(self, config: RoomSimConfig, room_models, initial_temperature: float, seed: int = 0):
+        self.cfg = config
+        self.models = np.asarray(room_models, dtype=float)
+        self.rng = np.random.default_rng(seed)
+        self.every = int(round(config.control_period / config.dt))
+        self.pwm_steps = max(1, int(round(config.pwm_period / config.dt)))
+        self.T = float(initial_temperature)
+        self.k = 0
+        self.on = True
+        self.anchor = self.T  # temperature at the last switch
+        self.switches = 0
+        self.integral, self.last_err, self.duty, self.pwm_start = 0.0, None, 1.0, 0
+        self.reading = self.T
+
+    @property
+    def t(self) -> float:
+        return self.k * self.cfg.dt
+
+    def step(self, goal: float, model: int) -> float:
+        """Sense and decide at t_k with ``goal`` and ``model`` in effect, integrate to t_k+1."""
+        cfg, k = self.cfg, self.k
+        noise = self.rng.normal(0.0, cfg.sensor_noise) if cfg.sensor_noise > 0 else 0.0
+        if k % self.every == 0:
+            reading = self.T + noise
+            if cfg.sensor_resolution > 0:
+                reading = round(reading / cfg.sensor_resolution) * cfg.sensor_resolution
+            self.reading = reading
+            if cfg.controller == "onoff":
+                want = self.on
+                if self.on and reading >= goal + cfg.hysteresis:
+                    want = False
+                elif not self.on and reading < goal - cfg.hysteresis:
+                    want = True
+            else:
+                err = goal - reading
+                bound = 1.0 / max(cfg.ki, 1e-12)
+                self.integral = min(max(self.integral + err * cfg.control_period, -bound), bound)
+                deriv = 0.0 if self.last_err is None else (err - self.last_err) / cfg.control_period
+                self.last_err = err
+                if (k - self.pwm_start) % self.pwm_steps == 0 or k == 0:
+                    self.duty = min(max(cfg.kp * err + cfg.ki * self.integral + cfg.kd * deriv, 0.0), 1.0)
+                    self.pwm_start = k
+                want = (k - self.pwm_start) < self.duty * self.pwm_steps
+            if want != self.on:
+                self.on, self.anchor = want, self.T
+                self.switches += 1
+        k_on1, k_on2, k_off1, k_off2 = self.models[int(model) - 1]
+        if self.on:
+            level, rate = self.anchor + k_on1, k_on2 / cfg.model_step
+        else:
+            level, rate = self.anchor - k_off1, k_off2 / cfg.model_step
+        self.T = level + (self.T - level) * math.exp(-rate * cfg.dt)
+        self.k += 1
+        return self.T
+
+
+class _Stream:
+    """A precomputed run published as the wall clock reaches each sample's simulated time."""
+
+    def __init__(self, columns: dict[str, np.ndarray], start_ns: int, every: int):
+        self.cols = columns
+        self.start_ns = start_ns
+        n = len(columns["t"])
+        idx = np.arange(0, n, max(1, every))
+        if n and idx[-1] != n - 1:
+            idx = np.append(idx, n - 1)  # the last sample (where the run ended) always goes out
+        self.idx = idx
+        self.next = 0
+
+    def due(self, now_ns: int, time_scale: float) -> np.ndarray:
+        sim_now = (now_ns - self.start_ns) / 1e9 * time_scale
+        t = self.cols["t"][self.idx]
+        end = int(np.searchsorted(t, sim_now + 1e-12, side="right"))
+        out = self.idx[self.next:end]
+        self.next = max(self.next, end)
+        return out
+
+    @property
+    def done(self) -> bool:
+        return self.next >= len(self.idx)
+
+
+class ExternalSim:
+    def __init__(self, argv: list[str] | None = None, node=None):
+        self.node = node or create_node("external_sim", argv=argv)
+        n = self.node
+        p = n.declare_parameter
+        self.problem_name = p("problem", "robot", "robot | vehicle | thermostat")
+        if self.problem_name not in PROBLEMS:
+            raise ConfigError(f"problem: unknown {self.problem_name!r} (allowed: {'|'.join(PROBLEMS)})")
+        config_file = p("config_file", "", "YAML with problem_config overrides (thermostat: room models)")
+        self.problem = get_problem(self.problem_name, load_config_file(config_file).get("problem_config") or {})
+        self.time_scale = float(p("time_scale", 1.0, "simulated seconds per wall second"))
+        if not self.time_scale > 0:
+            raise ConfigError("time_scale: must be > 0")
+        self.seed = p("seed", 0, "seed of every run (laser / sensor noise)")
+        self.every = max(1, p("publish_every", 1, "publish every k-th simulator step (the last always)"))
+        self.frame_id = p("frame_id", "map", "frame of published poses")
+        self.child_frame_id = p("child_frame_id", "base_link", "odometry child frame")
+        tick = p("tick_period", 0.002, "seconds between publishing turns")
+        cfg_cls = SIMULATORS[self.problem_name][0]
+        options = {}
+        for f in dataclasses.fields(cfg_cls):
+            if f.name == "run_invalid":
+                continue
+            value = p(f"sim.{f.name}", f.default, f"simulator option {f.name}")
+            if value != f.default:
+                options[f.name] = value
+        self.cfg = cfg_cls(**options)
+        self.stream: _Stream | None = None
+        self.runs = 0
+        make = n.new_message
+        self._make = make
+        if self.problem_name == "robot":
+            self.map: tuple[np.ndarray, float, float, float] | None = None
+            self.start: tuple[float, float] | None = None
+            self.goal: tuple[float, float] | None = None
+            self.diagonal = p("diagonal", self.problem.config.diagonal, "A* diagonal rule of the route planner")
+            n.create_subscription("nav_msgs/msg/OccupancyGrid", p("map_topic", "/map"), self.on_map, LATCHED)
+            n.create_subscription("geometry_msgs/msg/PoseWithCovarianceStamped",
+                                  p("initialpose_topic", "/initialpose"), self.on_initialpose, DEFAULT)
+            n.create_subscription("geometry_msgs/msg/PoseStamped", p("goal_topic", "/goal_pose"), self.on_goal, DEFAULT)
+        elif self.problem_name == "vehicle":
+            self.lane_width = float(p("lane_width", float(self.problem.config.lane_width), "lane width [m]"))
+            n.create_subscription("nav_msgs/msg/Path", p("road_topic", "/road"), self.on_road, LATCHED)
+        else:
+            self.room_model = int(p("room_model", 1, "room model while none arrives on room_model_topic"))
+            self.initial_temperature = float(p("initial_temperature", float("nan"),
+                                               "start temperature without a reset message (NaN = first set point)"))
+            self.max_duration = float(p("max_duration", 86400.0, "a run stops after this many simulated seconds"))
+            self.setpoint: float | None = None
+            self.room: SteppedRoom | None = None
+            self.room_start_ns = 0
+            n.create_subscription("std_msgs/msg/Float64", p("setpoint_topic", "/thermostat/setpoint"), self.on_setpoint, DEFAULT)
+            reset_topic = p("initial_temperature_topic", "/thermostat/initial_temperature", "'' = none")
+            model_topic = p("room_model_topic", "/thermostat/room_model", "'' = none")
+            if reset_topic:
+                n.create_subscription("std_msgs/msg/Float64", reset_topic, self.on_reset, DEFAULT)
+            if model_topic:
+                n.create_subscription("std_msgs/msg/UInt8", model_topic, self.on_room_model, DEFAULT)
+        out_topic = p("temperature_topic" if self.problem_name == "thermostat" else "odom_topic",
+                      "/thermostat/temperature" if self.problem_name == "thermostat" else "/odom")
+        out_type = "sensor_msgs/msg/Temperature" if self.problem_name == "thermostat" else "nav_msgs/msg/Odometry"
+        reliable = p("reliable", True, "publish reliably (false: best effort)")
+        self.pub = n.create_publisher(out_type, out_topic, Qos(reliable=reliable, transient_local=False, depth=STREAM.depth))
+        n.create_timer(tick, self.tick)
+        n.logger.info(f"external {self.problem_name} simulator at {self.time_scale:g}x real time, seed {self.seed}")
+
+    # --- robot ------------------------------------------------------------------------------
+    def on_map(self, msg: Any) -> None:
+        info = msg.info
+        self.map = (conversions.grid_from_message(msg), float(info.resolution),
+                    float(info.origin.position.x), float(info.origin.position.y))
+        self.node.logger.debug(f"map {info.width}x{info.height} at {info.resolution:g} m")
+        self._abort()
+
+    def on_initialpose(self, msg: Any) -> None:
+        pos = msg.pose.pose.position
+        self.start = (float(pos.x), float(pos.y))
+        self.node.logger.debug(f"initial pose {self.start}")
+        self._abort()
+
+    def on_goal(self, msg: Any) -> None:
+        pos = msg.pose.position
+        self.goal = (float(pos.x), float(pos.y))
+        self.node.logger.debug(f"goal {self.goal}")
+        self._abort()
+
+    def _robot_run(self) -> None:
+        grid, res, ox, oy = self.map
+        cell = lambda p: (int(math.floor((p[0] - ox) / res)), int(math.floor((p[1] - oy) / res)))  # noqa: E731
+        start, goal = cell(self.start), cell(self.goal)
+        self.goal = None
+        H, W = grid.shape
+        if not all(0 <= c[0] < W and 0 <= c[1] < H for c in (start, goal)):
+            self.node.logger.warning(f"start {start} or goal {goal} outside the {W}x{H} map; not moving")
+            return
+        run = robot.navigate(grid, res, start, goal, self.cfg, seed=self.seed, diagonal=self.diagonal)
+        tl = run["timeline"]
+        cols = {"t": tl["t"], "x": tl["x"] + ox, "y": tl["y"] + oy, "yaw": tl["yaw"], "v": tl["v"]}
+        self._start_stream(cols, f"robot run: {run['outcome']} after {run['time']:.1f} s")
+
+    # --- car --------------------------------------------------------------------------------
+    def on_road(self, msg: Any) -> None:
+        self._abort()
+        pts = conversions.path_points(msg)
+        if len(pts) < 2:
+            self.node.logger.warning("road with fewer than 2 points; not driving")
+            return
+        run = car.drive(pts, self.lane_width, self.cfg, seed=self.seed)
+        tl = run["timeline"]
+        self._start_stream({k: tl[k] for k in ("t", "x", "y", "yaw", "v")},
+                           f"car run: {run['outcome']} after {run['time']:.1f} s")
+
+    # --- thermostat ---------------------------------------------------------------------------
+    def on_setpoint(self, msg: Any) -> None:
+        self.setpoint = float(msg.data)
+        self.node.logger.debug(f"set point {self.setpoint:g} degC")
+        if self.room is None:  # no reset message so far: the first set point starts the room
+            start = self.initial_temperature if math.isfinite(self.initial_temperature) else self.setpoint
+            self._reset_room(start)
+        elif self.room.t >= self.max_duration:  # a finished run goes on from where it stopped
+            self._reset_room(self.room.T)
+
+    def on_reset(self, msg: Any) -> None:
+        self._reset_room(float(msg.data))
+
+    def on_room_model(self, msg: Any) -> None:
+        model = int(msg.data)
+        if 1 <= model <= len(self.problem.config.room_models):
+            self.room_model = model
+        else:
+            self.node.logger.warning(f"room model {model} unknown (1..{len(self.problem.config.room_models)}); ignored")
+
+    def _reset_room(self, temperature: float) -> None:
+        self.room = SteppedRoom(self.cfg, self.problem.config.room_models, temperature, self.seed)
+        self.room_started = False
+        self.runs += 1
+        self.node.logger.debug(f"room reset to {temperature:g} degC (run {self.runs})")
+
+    def _room_tick(self, now: int) -> None:
+        room = self.room
+        if room is None or room.t >= self.max_duration:
+            return
+        if not self.room_started:  # the run's clock starts once there is a set point to follow
+            if self.setpoint is None:
+                return
+            self.room_started, self.room_start_ns = True, now
+            self._publish_temperature(now, room.T)
+        target = math.floor((now - self.room_start_ns) / 1e9 * self.time_scale / self.cfg.dt + 1e-9)
+        while room.k < target and room.t < self.max_duration:
+            T = room.step(self.setpoint, self.room_model)
+            self._publish_temperature(self.room_start_ns + int(round(room.t * 1e9)), T)
+
+    def _publish_temperature(self, stamp_ns: int, value: float) -> None:
+        make = self._make
+        noise = self.cfg.sensor_noise
+        self.pub.publish(make("sensor_msgs/msg/Temperature", header=conversions.header(make, stamp_ns, self.frame_id),
+                              temperature=float(value), variance=float(noise * noise)))
+
+    # --- streaming ----------------------------------------------------------------------------
+    def _start_stream(self, cols: dict[str, np.ndarray], what: str) -> None:
+        self.runs += 1
+        self.stream = _Stream(cols, self.node.now_ns(), self.every)
+        self.node.logger.info(f"{what} (run {self.runs}; streaming {len(self.stream.idx)} samples)")
+
+    def _abort(self) -> None:
+        if self.stream is not None and not self.stream.done:
+            self.node.logger.info("new input: the current run is abandoned")
+        self.stream = None
+
+    def tick(self) -> None:
+        now = self.node.now_ns()
+        if self.problem_name == "thermostat":
+            self._room_tick(now)
+            return
+        if self.problem_name == "robot" and self.goal is not None and self.map is not None and self.start is not None:
+            self._robot_run()  # blocks while it computes; the run's clock starts afterwards
+            now = self.node.now_ns()
+        if self.stream is None:
+            return
+        s = self.stream
+        make = self._make
+        for i in s.due(now, self.time_scale):
+            stamp = s.start_ns + int(round(float(s.cols["t"][i]) * 1e9))
+            msg = make(
+                "nav_msgs/msg/Odometry",
+                header=conversions.header(make, stamp, self.frame_id),
+                child_frame_id=self.child_frame_id,
+                pose=make("geometry_msgs/msg/PoseWithCovariance",
+                          pose=conversions.pose(make, s.cols["x"][i], s.cols["y"][i], float(s.cols["yaw"][i]))),
+                twist=make("geometry_msgs/msg/TwistWithCovariance",
+                           twist=make("geometry_msgs/msg/Twist",
+                                      linear=make("geometry_msgs/msg/Vector3", x=float(s.cols["v"][i]), y=0.0, z=0.0))),
+            )
+            self.pub.publish(msg)
+        if s.done:
+            self.stream = None
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        sim = ExternalSim(argv)
+    except (ConfigError, ScenarioError, ValueError, TransportError) as exc:
+        print(f"external_sim: error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        sim.node.spin()
+    finally:
+        sim.node.shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

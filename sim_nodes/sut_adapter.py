@@ -1,0 +1,486 @@
+"""`sut_adapter`: an existing ROS stack as the system under test, judged by our oracles.
+
+To the generator it is one more sim worker (heartbeats on ``/ambiegen/workers``, scenarios from
+``/ambiegen/<problem>/scenarios``, one ``ambiegen_msgs/ScenarioResult`` per scenario on
+``/ambiegen/results``). To the system under test it is a user with standard topics:
+
+* ``robot``: the map on ``map_topic`` (``nav_msgs/OccupancyGrid``, reliable + transient local),
+  the start on ``initialpose_topic`` (``geometry_msgs/PoseWithCovarianceStamped``), then, after
+  ``settle_time``, the goal on ``goal_topic`` (``geometry_msgs/PoseStamped``) or, with
+  ``goal_mode:=action`` on the rclpy backend, as a Nav2 ``navigate_to_pose`` action goal. It
+  watches ``odom_topic`` (``nav_msgs/Odometry``, poses in the map frame, or relative to the start
+  pose with ``odom_frame:=start``) and, if ``collision_topic`` is set, a ``std_msgs/Bool`` that
+  reports a collision when true.
+* ``vehicle``: the road on ``road_topic`` (``nav_msgs/Path``, latched); watches ``odom_topic``
+  (pose = centre of the car's bounding box).
+* ``thermostat``: set points on ``setpoint_topic`` (``std_msgs/Float64``), each when its
+  element starts (at ``time_scale``); for simulated rooms also the element's room model on
+  ``room_model_topic`` (``std_msgs/UInt8``) and, first, the start temperature on
+  ``initial_temperature_topic`` (``std_msgs/Float64``; empty names switch these off). Watches
+  ``temperature_topic`` (``sensor_msgs/Temperature``).
+
+Time: the first sample after the scenario started is t = 0. With ``stamp_clock:=sim`` (default)
+header stamps count simulated seconds (a real system at time_scale 1, a simulator stamping with
+its own clock); ``wall``: stamps are wall time of a system running ``time_scale`` times faster
+(t = stamp difference x time_scale); ``receive``: stamps are ignored, arrival time x time_scale.
+The verdict comes from ``ambiegen_ros.sims.oracles`` with the thresholds in ``oracle.<field>``
+(defaults: the full-model simulators'). No first sample within ``start_timeout`` s, no sample for
+``silence_timeout`` s, or the run taking longer than ``wall_slack`` x its simulated limit /
+time_scale (+ start_timeout) wall seconds give an ``error`` result saying so.
+
+One scenario runs at a time; others queue (the heartbeat reports how many). Everything happens in
+callbacks and timers; nothing blocks the executor.
+"""
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ambiegen_ros.core.attributes import ScenarioError
+from ambiegen_ros.core.config import ConfigError, load_config_file
+from ambiegen_ros.problems import get_problem
+from ambiegen_ros.ros import conversions, topics
+from ambiegen_ros.ros.qos import DEFAULT, LATCHED, STREAM, Qos
+from ambiegen_ros.ros.transport import TransportError, create_node
+from ambiegen_ros.sims import Outcome
+from ambiegen_ros.sims.full_model import FullModelExecutor, sim_config
+from ambiegen_ros.sims.oracles import CarJudge, RobotJudge, ThermostatJudge
+
+ORACLE_FIELDS = {
+    "robot": ("radius", "goal_tolerance", "stall_radius", "stall_time", "timeout", "clearance_cells"),
+    "vehicle": ("length", "width", "rear_overhang", "lane_width", "oob_tolerance", "stall_distance",
+                "stall_time", "goal_distance", "timeout_base", "timeout_speed"),
+    "thermostat": ("requirement_rmse", "band"),
+}
+STAMP_CLOCKS = ("sim", "wall", "receive")
+ODOM_FRAMES = ("map", "start")
+GOAL_MODES = ("topic", "action")
+
+
+def yaw_of(q: Any) -> float:
+    """Heading from a quaternion (any roll/pitch ignored)."""
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def to_map_frame(x: np.ndarray, y: np.ndarray, yaw: np.ndarray, start: tuple[float, float, float]):
+    """Poses relative to the start pose (an odometry frame that begins where the robot was
+    spawned) -> map frame."""
+    sx, sy, syaw = start
+    c, s = math.cos(syaw), math.sin(syaw)
+    return sx + c * x - s * y, sy + s * x + c * y, (yaw + syaw + math.pi) % (2 * math.pi) - math.pi
+
+
+def sample_times(stamp_ns: np.ndarray, recv_ns: np.ndarray, first: tuple[int, int], clock: str,
+                 time_scale: float) -> np.ndarray:
+    """Simulated seconds since the first sample, from header stamps or arrival times."""
+    if clock == "sim":
+        return (np.asarray(stamp_ns, dtype=np.int64) - first[0]) / 1e9
+    if clock == "wall":
+        return (np.asarray(stamp_ns, dtype=np.int64) - first[0]) / 1e9 * time_scale
+    return (np.asarray(recv_ns, dtype=np.int64) - first[1]) / 1e9 * time_scale
+
+
+@dataclass
+class Job:
+    run_id: str
+    scenario_id: int
+    scenario: Any
+    msg: Any
+    reason: str | None = None
+    valid: bool = True
+    judge: Any = None
+    phase: str = "queued"  # queued -> settle -> waiting -> running
+    started: float = 0.0  # monotonic, job start
+    go: float = 0.0  # monotonic, when the run was started on the system under test
+    anchor: float | None = None  # monotonic arrival of sample 0 (= simulated time 0)
+    settle_until: float = 0.0
+    last_sample: float = 0.0
+    first: tuple[int, int] | None = None  # (stamp ns, receive ns) of sample 0
+    t_prev: float = -math.inf
+    limit_sim: float = 0.0  # simulated seconds the oracle needs at most
+    schedule: list[tuple[float, float, int]] = field(default_factory=list)  # (start s, set point, model)
+    next_element: int = 0
+    start_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+class SutAdapter:
+    def __init__(self, argv: list[str] | None = None, node=None):
+        self.node = node or create_node("sut_adapter", argv=argv)
+        n = self.node
+        p = n.declare_parameter
+        self.problem_name = p("problem", "robot", "robot | vehicle | thermostat")
+        if self.problem_name not in ORACLE_FIELDS:
+            raise ConfigError(f"problem: unknown {self.problem_name!r} (allowed: {'|'.join(ORACLE_FIELDS)})")
+        self.worker_id = p("worker_id", f"{n.name}_{os.getpid()}", "unique id of this worker")
+        config_file = p("config_file", "", "YAML with problem_config overrides")
+        heartbeat_period = p("heartbeat_period", 0.5, "seconds between heartbeats")
+        self.min_result_subscribers = p("min_result_subscribers", 1, "result subscribers to wait for before announcing")
+        self.frame_id = p("frame_id", "map", "frame of the published map, poses and road")
+        self.time_scale = float(p("time_scale", 1.0, "simulated seconds per wall second of the system under test"))
+        self.stamp_clock = p("stamp_clock", "sim", "sim | wall | receive: how sample times are read")
+        self.odom_frame = p("odom_frame", "map", "map | start: frame of odometry poses (robot)")
+        self.settle_time = float(p("settle_time", 0.3, "seconds between map + initial pose and the goal"))
+        self.start_timeout = float(p("start_timeout", 10.0, "seconds to wait for the first sample"))
+        self.silence_timeout = float(p("silence_timeout", 10.0, "seconds without a sample that end a run"))
+        self.wall_slack = float(p("wall_slack", 2.0, "a run may take this times its simulated limit / time_scale"))
+        self.run_invalid = p("run_invalid", False, "also run scenarios the problem calls invalid")
+        self.goal_mode = p("goal_mode", "topic", "topic | action (Nav2 navigate_to_pose, rclpy only)")
+        self.action_name = p("action_name", "navigate_to_pose", "Nav2 action for goal_mode action")
+        self.tick_period = float(p("tick_period", 0.002, "seconds between adapter turns while a scenario runs"))
+        odom_reliable = p("odom_reliable", True, "subscribe to samples reliably (false: best effort)")
+        for name, allowed, value in (("stamp_clock", STAMP_CLOCKS, self.stamp_clock),
+                                     ("odom_frame", ODOM_FRAMES, self.odom_frame),
+                                     ("goal_mode", GOAL_MODES, self.goal_mode)):
+            if value not in allowed:
+                raise ConfigError(f"{name}: unknown {value!r} (allowed: {'|'.join(allowed)})")
+        if not self.time_scale > 0:
+            raise ConfigError("time_scale: must be > 0")
+        if self.goal_mode == "action" and n.backend_name != "rclpy":
+            raise ConfigError("goal_mode: 'action' needs the rclpy backend (the DDS backend has no actions)")
+
+        defaults = sim_config(self.problem_name)
+        options = {}
+        for name in ORACLE_FIELDS[self.problem_name]:
+            value = p(f"oracle.{name}", getattr(defaults, name), f"oracle threshold {name}")
+            if value != getattr(defaults, name):
+                options[name] = value
+        options["run_invalid"] = bool(self.run_invalid)
+        self.oracle = sim_config(self.problem_name, options)
+        self.problem = get_problem(self.problem_name, load_config_file(config_file).get("problem_config") or {})
+        self.validity = FullModelExecutor(self.problem, config=self.oracle).validity
+
+        self.results = n.create_publisher(topics.RESULT_TYPE, topics.RESULTS, STREAM)
+        self.heartbeats = n.create_publisher(topics.WORKERS_TYPE, topics.WORKERS, DEFAULT)
+        n.create_subscription(topics.SCENARIO_TYPES[self.problem_name], topics.scenarios(self.problem_name),
+                              self.on_scenario, STREAM)
+        sample_qos = Qos(reliable=odom_reliable, transient_local=False, depth=STREAM.depth)
+        self.topics: dict[str, str] = {}
+        if self.problem_name == "robot":
+            self.topics = {
+                "map": p("map_topic", "/map"), "initialpose": p("initialpose_topic", "/initialpose"),
+                "goal": p("goal_topic", "/goal_pose"), "odom": p("odom_topic", "/odom"),
+                "collision": p("collision_topic", "", "optional std_msgs/Bool, true = collision ('' = none)"),
+            }
+            self.pub_map = n.create_publisher("nav_msgs/msg/OccupancyGrid", self.topics["map"], LATCHED)
+            self.pub_initialpose = n.create_publisher("geometry_msgs/msg/PoseWithCovarianceStamped",
+                                                      self.topics["initialpose"], DEFAULT)
+            self.pub_goal = n.create_publisher("geometry_msgs/msg/PoseStamped", self.topics["goal"], DEFAULT)
+            n.create_subscription("nav_msgs/msg/Odometry", self.topics["odom"], self.on_odom, sample_qos)
+            if self.topics["collision"]:
+                n.create_subscription("std_msgs/msg/Bool", self.topics["collision"], self.on_collision, DEFAULT)
+        elif self.problem_name == "vehicle":
+            self.topics = {"road": p("road_topic", "/road"), "odom": p("odom_topic", "/odom")}
+            self.pub_road = n.create_publisher("nav_msgs/msg/Path", self.topics["road"], LATCHED)
+            n.create_subscription("nav_msgs/msg/Odometry", self.topics["odom"], self.on_odom, sample_qos)
+        else:
+            self.topics = {
+                "setpoint": p("setpoint_topic", "/thermostat/setpoint"),
+                "temperature": p("temperature_topic", "/thermostat/temperature"),
+                "room_model": p("room_model_topic", "/thermostat/room_model", "'' = do not publish"),
+                "initial_temperature": p("initial_temperature_topic", "/thermostat/initial_temperature",
+                                         "'' = do not publish"),
+            }
+            self.pub_setpoint = n.create_publisher("std_msgs/msg/Float64", self.topics["setpoint"], DEFAULT)
+            self.pub_model = (n.create_publisher("std_msgs/msg/UInt8", self.topics["room_model"], DEFAULT)
+                              if self.topics["room_model"] else None)
+            self.pub_reset = (n.create_publisher("std_msgs/msg/Float64", self.topics["initial_temperature"], DEFAULT)
+                              if self.topics["initial_temperature"] else None)
+            n.create_subscription("sensor_msgs/msg/Temperature", self.topics["temperature"], self.on_temperature,
+                                  sample_qos)
+        self.queue: deque[Job] = deque()
+        self.job: Job | None = None
+        self.samples: list[tuple] = []
+        self.collision = False
+        self.executed = 0
+        self.ready = False
+        self._fast = None
+        self._action = None
+        n.create_timer(heartbeat_period, self.heartbeat)
+        n.create_timer(0.02, self.idle)
+        n.logger.info(
+            f"{self.worker_id}: {self.problem_name} scenarios -> {', '.join(f'{k}={v}' for k, v in self.topics.items() if v)}"
+            f" (time_scale {self.time_scale:g}, stamp_clock {self.stamp_clock})"
+        )
+
+    # --- worker side ----------------------------------------------------------------------------
+    def heartbeat(self) -> None:
+        if not self.ready:
+            self.ready = self.results.subscription_count() >= self.min_result_subscribers
+            if not self.ready:
+                return
+        in_flight = len(self.queue) + (self.job is not None)
+        self.heartbeats.publish(conversions.heartbeat_message(
+            self.node.new_message, self.worker_id, self.problem_name, in_flight, self.executed))
+
+    def on_scenario(self, msg: Any) -> None:
+        meta = msg.meta
+        if meta.assigned_worker not in ("", self.worker_id):
+            return
+        run_id, sid = meta.run_id, int(meta.scenario_id)
+        if any((j.run_id, j.scenario_id) == (run_id, sid) for j in [self.job, *self.queue] if j is not None):
+            return  # a re-sent scenario still waiting here: its one result is coming
+        try:
+            scenario, _ = conversions.scenario_from_message(self.problem, msg)
+            valid, reason = self.validity(scenario)
+        except ScenarioError as exc:
+            self.publish(run_id, sid, Outcome.rejected(str(exc)))
+            return
+        except Exception as exc:  # malformed arrays and the like: still one answer
+            self.publish(run_id, sid, Outcome.rejected(f"{type(exc).__name__}: {exc}", kind="error"))
+            return
+        if not valid and not self.run_invalid:
+            outcome = Outcome.rejected(f"restriction broken: {reason}")
+            outcome.metrics = {"outcome": "invalid", "valid": False, "reason": reason}
+            self.publish(run_id, sid, outcome)
+            return
+        self.queue.append(Job(run_id, sid, scenario, msg, reason, valid))
+
+    def publish(self, run_id: str, scenario_id: int, outcome: Outcome) -> None:
+        msg = conversions.result_message(self.node.new_message, self.node.now_ns(), run_id, int(scenario_id),
+                                         self.problem_name, self.worker_id, outcome)
+        self.results.publish(msg)
+        self.executed += 1
+
+    # --- one scenario at a time -----------------------------------------------------------------
+    def idle(self) -> None:
+        if self.job is None and self.queue:
+            self.start(self.queue.popleft())
+
+    def start(self, job: Job) -> None:
+        """Take the next scenario: first wait until the system under test is on the graph."""
+        self.job = job
+        self.samples.clear()
+        self.collision = False
+        job.started = time.monotonic()
+        job.phase = "connecting"
+        self._next_graph_check = 0.0
+        self._fast = self.node.create_timer(self.tick_period, self.tick)
+
+    def _missing_peers(self) -> list[str]:
+        """What the system under test has not shown yet: subscribers to our inputs, its publisher."""
+        if self.problem_name == "robot":
+            pubs = [self.pub_initialpose] + ([self.pub_goal] if self.goal_mode == "topic" else [])
+            out_topic = self.topics["odom"]
+        elif self.problem_name == "vehicle":
+            pubs, out_topic = [self.pub_road], self.topics["odom"]
+        else:
+            pubs, out_topic = [self.pub_setpoint], self.topics["temperature"]
+        missing = [f"nobody subscribes to {pub.topic}" for pub in pubs if pub.subscription_count() < 1]
+        if not self.node.publishers_info(out_topic):
+            missing.append(f"nobody publishes {out_topic}")
+        return missing
+
+    def setup(self, job: Job, now: float) -> None:
+        """Put the scenario on the standard topics (the goal follows after ``settle_time``)."""
+        make, stamp = self.node.new_message, self.node.now_ns()
+        head = conversions.header(make, stamp, self.frame_id)
+        msg = job.msg
+        try:
+            if self.problem_name == "robot":
+                grid = conversions.grid_from_message(msg.map)
+                info = msg.map.info
+                origin = (float(info.origin.position.x), float(info.origin.position.y))
+                goal = msg.goal.pose.position
+                job.judge = RobotJudge(grid, float(info.resolution), (float(goal.x), float(goal.y)), self.oracle, origin)
+                job.limit_sim = self.oracle.timeout
+                s = msg.start.pose
+                job.start_pose = (float(s.position.x), float(s.position.y), yaw_of(s.orientation))
+                self.pub_map.publish(make("nav_msgs/msg/OccupancyGrid", header=head, info=info, data=msg.map.data))
+                self.pub_initialpose.publish(make("geometry_msgs/msg/PoseWithCovarianceStamped", header=head,
+                                                  pose=make("geometry_msgs/msg/PoseWithCovariance", pose=s)))
+                job.phase, job.settle_until = "settle", now + self.settle_time
+            elif self.problem_name == "vehicle":
+                road = conversions.path_points(msg.road)
+                job.judge = CarJudge(road, float(msg.lane_width), self.oracle)
+                job.limit_sim = job.judge.time_limit
+                self.pub_road.publish(make("nav_msgs/msg/Path", header=head, poses=list(msg.road.poses)))
+                job.phase, job.go = "waiting", now
+            else:
+                setpoints = [float(v) for v in np.asarray(msg.setpoints, dtype=float)]
+                durations = [float(v) for v in np.asarray(msg.durations_min, dtype=float)]
+                models = [int(v) for v in np.asarray(msg.room_models)]
+                job.judge = ThermostatJudge(setpoints, durations, self.oracle)
+                job.limit_sim = job.judge.total
+                starts = np.concatenate([[0.0], np.cumsum(np.asarray(durations) * 60.0)[:-1]])
+                job.schedule = list(zip(starts.tolist(), setpoints, models))
+                self._publish_element(job.schedule[0])
+                if self.pub_reset is not None:
+                    self.pub_reset.publish(make("std_msgs/msg/Float64", data=float(msg.initial_temperature)))
+                job.next_element = 1
+                job.phase, job.go = "waiting", now
+        except Exception as exc:  # a scenario message we cannot turn into the contract
+            self.finish(Outcome.rejected(f"{type(exc).__name__}: {exc}", kind="error"))
+
+    def _publish_element(self, element: tuple[float, float, int]) -> None:
+        make = self.node.new_message
+        _, setpoint, model = element
+        if self.pub_model is not None:
+            self.pub_model.publish(make("std_msgs/msg/UInt8", data=int(model)))
+        self.pub_setpoint.publish(make("std_msgs/msg/Float64", data=float(setpoint)))
+
+    def _send_goal(self, job: Job) -> None:
+        make = self.node.new_message
+        goal = make("geometry_msgs/msg/PoseStamped", header=conversions.header(make, self.node.now_ns(), self.frame_id),
+                    pose=job.msg.goal.pose)
+        if self.goal_mode == "action":
+            self._send_action_goal(goal)
+        else:
+            self.pub_goal.publish(goal)
+
+    def _send_action_goal(self, goal: Any) -> None:  # pragma: no cover - needs rclpy and nav2_msgs
+        """Nav2's NavigateToPose; the verdict still comes from odometry, the action result is logged."""
+        from nav2_msgs.action import NavigateToPose
+        from rclpy.action import ActionClient
+
+        if self._action is None:
+            self._action = ActionClient(self.node._node, NavigateToPose, self.action_name)
+        if not self._action.server_is_ready():
+            self.node.logger.warning(f"action server {self.action_name} not ready; sending anyway")
+        request = NavigateToPose.Goal()
+        request.pose = goal
+        logger = self.node.logger
+
+        def on_response(future):
+            handle = future.result()
+            if handle is None or not handle.accepted:
+                logger.warning("navigate_to_pose goal rejected")
+                return
+            handle.get_result_async().add_done_callback(
+                lambda f: logger.info(f"navigate_to_pose finished with status {f.result().status}"))
+
+        self._action.send_goal_async(request).add_done_callback(on_response)
+
+    # --- samples --------------------------------------------------------------------------------
+    def on_odom(self, msg: Any) -> None:
+        job = self.job
+        if job is None or job.phase not in ("waiting", "running"):
+            return
+        pose = msg.pose.pose
+        self.samples.append((conversions.stamp_ns(msg.header), time.monotonic_ns(), float(pose.position.x),
+                             float(pose.position.y), yaw_of(pose.orientation), float(msg.twist.twist.linear.x)))
+
+    def on_temperature(self, msg: Any) -> None:
+        job = self.job
+        if job is None or job.phase not in ("waiting", "running"):
+            return
+        self.samples.append((conversions.stamp_ns(msg.header), time.monotonic_ns(), float(msg.temperature)))
+
+    def on_collision(self, msg: Any) -> None:
+        if self.job is not None and self.job.phase == "running" and bool(msg.data):
+            self.collision = True
+
+    def tick(self) -> None:
+        job = self.job
+        if job is None:
+            return
+        now = time.monotonic()
+        what = "temperature readings" if self.problem_name == "thermostat" else "odometry"
+        if job.phase == "connecting":
+            if now < self._next_graph_check:
+                return
+            self._next_graph_check = now + 0.05  # graph queries are not free: 20 per second at most
+            missing = self._missing_peers()
+            if not missing:
+                self.setup(job, now)
+            elif now - job.started > self.start_timeout:
+                self.finish(Outcome.rejected(f"no {what} within {self.start_timeout:g} s: {'; '.join(missing)}",
+                                             kind="error"))
+            return
+        if job.phase == "settle":
+            if now >= job.settle_until:
+                self._send_goal(job)
+                job.phase, job.go = "waiting", now
+            return
+        if self.samples:
+            self._judge_samples(job, now)
+            if job.judge.decided:
+                self.finish(job.judge.outcome())
+                return
+        # Set point changes follow the system's clock, which starts with its first reading.
+        while (job.anchor is not None and job.next_element < len(job.schedule)
+               and now >= job.anchor + job.schedule[job.next_element][0] / self.time_scale):
+            self._publish_element(job.schedule[job.next_element])
+            job.next_element += 1
+        if self.collision:
+            job.judge.fail("collision", f"collision reported on {self.topics['collision']} "
+                                        f"after {job.judge.elapsed:.1f} s")
+            self.finish(job.judge.outcome())
+            return
+        if job.phase == "waiting" and now - job.go > self.start_timeout:
+            job.judge.finish(f"no {what} within {self.start_timeout:g} s")
+        elif job.phase == "running" and now - job.last_sample > self.silence_timeout:
+            job.judge.finish(f"{what} stopped after {job.judge.elapsed:.1f} s (simulated) without a verdict")
+        elif now - job.go > self.wall_slack * job.limit_sim / self.time_scale + self.start_timeout:
+            job.judge.finish(f"too slow: {job.judge.elapsed:.1f} of {job.limit_sim:.0f} simulated s after "
+                             f"{now - job.go:.1f} s wall (time_scale {self.time_scale:g})")
+        if job.judge.decided:
+            self.finish(job.judge.outcome())
+
+    def _judge_samples(self, job: Job, now: float) -> None:
+        rows = np.array(self.samples, dtype=object)
+        self.samples.clear()
+        stamps = rows[:, 0].astype(np.int64)
+        recv = rows[:, 1].astype(np.int64)
+        if job.first is None:
+            job.first = (int(stamps[0]), int(recv[0]))
+            job.anchor = recv[0] / 1e9
+            job.phase = "running"
+        job.last_sample = now
+        t = sample_times(stamps, recv, job.first, self.stamp_clock, self.time_scale)
+        keep = np.zeros(len(t), dtype=bool)  # strictly increasing times only (drops duplicates, reordering)
+        last = job.t_prev
+        for i, ti in enumerate(t):
+            if ti > last:
+                keep[i], last = True, ti
+        job.t_prev = last
+        if not keep.any():
+            return
+        vals = rows[keep, 2:].astype(float)
+        t = t[keep]
+        if self.problem_name == "thermostat":
+            job.judge.add(t, vals[:, 0])
+            return
+        x, y, yaw, v = vals.T
+        if self.odom_frame == "start":
+            x, y, yaw = to_map_frame(x, y, yaw, job.start_pose)
+        if self.problem_name == "robot":
+            job.judge.add(t, x, y)
+        else:
+            job.judge.add(t, x, y, yaw, v)
+
+    def finish(self, outcome: Outcome) -> None:
+        job = self.job
+        self.job = None
+        if self._fast is not None:
+            self._fast.cancel()
+            self._fast = None
+        wall = time.monotonic() - job.started
+        outcome.elapsed_sec = wall
+        outcome.metrics = {**outcome.metrics, "valid": job.valid, "reason": job.reason, "wall_s": wall,
+                           "time_scale": self.time_scale, "stamp_clock": self.stamp_clock}
+        self.publish(job.run_id, job.scenario_id, outcome)
+        self.node.logger.info(f"scenario {job.scenario_id}: {outcome.failure_kind} ({outcome.detail}) in {wall:.2f} s")
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        adapter = SutAdapter(argv)
+    except (ConfigError, ScenarioError, ValueError, TransportError) as exc:
+        print(f"sut_adapter: error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        adapter.node.spin()
+    finally:
+        adapter.node.shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

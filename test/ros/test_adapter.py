@@ -1,0 +1,463 @@
+"""Systems under test from outside: oracles over observed samples, and the adapter end to end.
+
+ROS-free part: the oracles of ``sims.oracles`` fed with a full-model run's own timeline must give
+that run's verdict (every kind: success, collision, stall, loiter, timeout, out of lane,
+requirement), in any batching; a series cut short is an error, never a pass; the live room of the
+external simulator is ``room.heat`` step by step.
+
+Process part (real DDS, ROS_DOMAIN_ID 140..149): ``external_sim`` (our simulators speaking only
+standard topics) + ``sut_adapter`` + a driver publishing crafted scenarios, or the generator
+running a small surrogate campaign; the adapter's verdicts must equal the in-process full-model
+verdicts of the same scenarios. An adapter with nobody answering must return an error result.
+"""
+from __future__ import annotations
+
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+REPO = Path(__file__).resolve().parents[2]
+for extra in (REPO, REPO / "test" / "sims"):
+    if str(extra) not in sys.path:
+        sys.path.insert(0, str(extra))
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from ambiegen_ros.problems import get_problem  # noqa: E402
+from ambiegen_ros.ros import conversions  # noqa: E402
+from ambiegen_ros.ros.qos import DEFAULT  # noqa: E402
+from ambiegen_ros.sims import car, oracles, robot, room  # noqa: E402
+from ambiegen_ros.sims.full_model import full_model_executor  # noqa: E402
+from sim_nodes.external_sim import SteppedRoom  # noqa: E402
+from sim_nodes.sut_adapter import sample_times, to_map_frame  # noqa: E402
+from test_full_models import GENTLE, HAIRPIN, corridor_map, easy_robot_elements  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def problems():
+    return {name: get_problem(name) for name in ("robot", "vehicle", "thermostat")}
+
+
+def scenario(problem, elements):
+    return problem.parse({"problem": problem.name, "elements": elements})
+
+
+def road(problem, spec):
+    return scenario(problem, [{"type": t, "length": l, "angle": a} for t, l, a in spec])
+
+
+def walled_goal_elements():
+    """The easy map with the goal's corner closed off by a horizontal and a vertical wall."""
+    els = easy_robot_elements()
+    els[44] = {"type": "horizontal", "size": 10, "position": 44}
+    els[46] = {"type": "vertical", "size": 6, "position": 44}
+    return els
+
+
+SWINGS = [{"temperature": 16 if i % 2 == 0 else 20, "duration": 60, "model": 7} for i in range(4)]
+STEADY = [{"temperature": 20, "duration": 120, "model": m} for m in (1, 2)]
+
+
+# --- the oracles on full-model timelines ----------------------------------------------------------
+def test_clearances_equal_wall_distance():
+    rng = np.random.default_rng(0)
+    g = rng.random((30, 40)) < 0.2
+    x, y = rng.uniform(-2, 42, 400), rng.uniform(-2, 32, 400)
+    for res, cells in ((1.0, 3), (0.5, 2)):
+        fast = oracles.clearances(g, res, x * res, y * res, cells)
+        slow = [robot.wall_distance(g, res, a * res, b * res, cells) for a, b in zip(x, y)]
+        assert np.array_equal(fast, slow)
+
+
+def robot_runs():
+    """(label, navigate record, config, goal cell) with every robot verdict among them."""
+    g = corridor_map()
+    goal = (24, 24)
+    cases = [
+        ("success", robot.RobotSimConfig()),
+        ("collision", robot.RobotSimConfig(fov_deg=60, beams=61, directions=31)),  # cannot see the corner
+        ("dead end", robot.RobotSimConfig(radius=0.45)),  # fits on paper, cannot enter: stall/loiter
+        ("no route", robot.RobotSimConfig(radius=0.55)),
+        ("timeout", robot.RobotSimConfig(timeout=20.0)),
+    ]
+    return [(label, robot.navigate(g, 1.0, (5, 5), goal, cfg, seed=2), cfg, g, goal) for label, cfg in cases]
+
+
+def test_robot_oracle_gives_the_simulator_verdicts():
+    kinds = set()
+    for label, run, cfg, g, goal in robot_runs():
+        tl = run["timeline"]
+        out = oracles.judge_robot(tl["t"], tl["x"], tl["y"], g, 1.0, ((goal[0] + 0.5), (goal[1] + 0.5)), cfg)
+        assert out.failure_kind == run["failure_kind"], (label, out.detail, run["detail"])
+        assert out.metrics["time"] == pytest.approx(run["time"], abs=1e-9)
+        assert out.metrics["path_length"] == pytest.approx(run["path_length"], abs=1e-9)
+        assert out.metrics["min_clearance"] == pytest.approx(run["min_clearance"], abs=1e-12)
+        assert out.failed == (run["failure_kind"] != "none")
+        kinds.add(out.failure_kind)
+    assert {"none", "collision", "timeout", "stall"} <= kinds
+
+
+def test_car_and_room_oracles_give_the_simulator_verdicts(problems):
+    pv, pt = problems["vehicle"], problems["thermostat"]
+    cases = [(road(pv, HAIRPIN), {}), (road(pv, GENTLE), {}), (road(pv, GENTLE), {"accel": 0.01}),
+             (road(pv, GENTLE), {"controller": "stanley"})]
+    kinds = set()
+    for sc, opts in cases:
+        full = full_model_executor(pv, **opts).execute(sc)
+        tl = full.timeline
+        out = oracles.judge_car(tl["t"], tl["x"], tl["y"], tl["yaw"], car.road_of(pv, sc)[0], 4.0,
+                                car.CarSimConfig(**opts), v=tl["v"])
+        assert out.failure_kind == full.failure_kind, (opts, out.detail, full.detail)
+        assert out.objectives["vehicle_max_oob"] == pytest.approx(full.objectives["vehicle_max_oob"], abs=1e-12)
+        for key in ("time", "max_lateral_offset", "distance_driven", "oob_arc_length", "departure_arc_length"):
+            assert out.metrics[key] == pytest.approx(full.metrics[key], abs=1e-9), key
+        kinds.add(out.failure_kind)
+    assert kinds == {"out_of_lane", "none", "stall"}
+    for els, controller in ((SWINGS, "onoff"), (STEADY, "onoff"), (SWINGS, "pid"), (STEADY, "pid")):
+        sc = scenario(pt, els)
+        full = full_model_executor(pt, controller=controller).execute(sc, seed=3)
+        sp, du, _ = room.schedule_of(pt, sc)
+        out = oracles.judge_thermostat(full.timeline["t"], full.timeline["temperature"], sp, du)
+        assert out.failure_kind == full.failure_kind
+        assert out.objectives["thermostat_rmse"] == pytest.approx(full.metrics["rmse"], rel=1e-12)
+        assert out.metrics["max_error"] == pytest.approx(full.metrics["max_error"], rel=1e-12)
+
+
+def test_batches_and_sampled_scenarios_do_not_change_verdicts(problems):
+    """Random batch splits (as samples arrive over DDS) and sampled scenarios: same verdicts."""
+    rng = np.random.default_rng(5)
+    pv = problems["vehicle"]
+    X = pv.sample_rows(6, np.random.default_rng(11))
+    for row in X:
+        sc = pv.codec.from_row(row)
+        full = full_model_executor(pv, run_invalid=True).execute(sc)
+        tl = full.timeline
+        judge = oracles.CarJudge(car.road_of(pv, sc)[0], 4.0)
+        cuts = np.sort(rng.choice(np.arange(1, len(tl["t"])), size=5, replace=False))
+        for part in np.split(np.arange(len(tl["t"])), cuts):
+            judge.add(tl["t"][part], tl["x"][part], tl["y"][part], tl["yaw"][part])
+        assert judge.decided and judge.outcome().failure_kind == full.failure_kind
+    label, run, cfg, g, goal = robot_runs()[1]
+    tl = run["timeline"]
+    judge = oracles.RobotJudge(g, 1.0, (goal[0] + 0.5, goal[1] + 0.5), cfg)
+    for part in np.array_split(np.arange(len(tl["t"])), 7):
+        judge.add(tl["t"][part], tl["x"][part], tl["y"][part])
+    assert judge.outcome().failure_kind == run["failure_kind"] == "collision"
+
+
+def test_a_series_cut_short_is_an_error_not_a_pass(problems):
+    label, run, cfg, g, goal = robot_runs()[0]
+    tl = run["timeline"]
+    half = len(tl["t"]) // 2
+    out = oracles.judge_robot(tl["t"][:half], tl["x"][:half], tl["y"][:half], g, 1.0, (24.5, 24.5), cfg)
+    assert out.failure_kind == "error" and not out.failed and out.objectives == {}
+    assert "without a verdict" in out.detail
+    pt = problems["thermostat"]
+    full = full_model_executor(pt).execute(scenario(pt, STEADY))
+    sp, du, _ = room.schedule_of(pt, scenario(pt, STEADY))
+    cut = oracles.judge_thermostat(full.timeline["t"][:100], full.timeline["temperature"][:100], sp, du)
+    assert cut.failure_kind == "error" and "schedule" in cut.detail
+    # stamps past the end still close the schedule (only the part inside counts)
+    t = full.timeline["t"] + 3.0
+    t[0] = 0.0
+    late = oracles.judge_thermostat(t, full.timeline["temperature"], sp, du)
+    assert late.failure_kind == "none" and late.metrics["rmse"] == pytest.approx(full.metrics["rmse"], rel=0.05)
+
+
+def test_stepped_room_is_heat_one_step_at_a_time(problems):
+    p = problems["thermostat"]
+    X = p.sample_rows(3, np.random.default_rng(2))
+    for controller in ("onoff", "pid"):
+        cfg = room.RoomSimConfig(controller=controller)
+        for row in X:
+            sp, du, mo = room.schedule_of(p, p.codec.from_row(row))
+            ref = room.heat(sp, du, mo, p.config.room_models, cfg, seed=4)["timeline"]
+            ends = np.cumsum(np.asarray(du) * 60.0)
+            live = SteppedRoom(cfg, p.config.room_models, sp[0], seed=4)
+            temps = [live.T]
+            for k in range(len(ref["t"]) - 1):
+                e = min(int(np.searchsorted(ends, k * cfg.dt, side="right")), len(ends) - 1)
+                temps.append(live.step(sp[e], mo[e]))
+            assert np.array_equal(np.array(temps), ref["temperature"]), controller
+
+
+def test_sample_times_read_each_clock():
+    stamps = np.array([5_000_000_000, 5_100_000_000, 5_300_000_000])
+    recv = np.array([10, 20_000_010, 40_000_010])
+    first = (int(stamps[0]), int(recv[0]))
+    assert sample_times(stamps, recv, first, "sim", 50.0) == pytest.approx([0.0, 0.1, 0.3])
+    assert sample_times(stamps, recv, first, "wall", 50.0) == pytest.approx([0.0, 5.0, 15.0])
+    assert sample_times(stamps, recv, first, "receive", 50.0) == pytest.approx([0.0, 1.0, 2.0])
+
+
+def test_odometry_relative_to_the_start_pose_maps_back():
+    rng = np.random.default_rng(1)
+    start = (3.0, -2.0, 2.5)
+    xm, ym, yawm = rng.uniform(-5, 5, 20), rng.uniform(-5, 5, 20), rng.uniform(-3, 3, 20)
+    # the same poses expressed in a frame whose origin is the start pose
+    c, s = math.cos(start[2]), math.sin(start[2])
+    xo, yo = c * (xm - start[0]) + s * (ym - start[1]), -s * (xm - start[0]) + c * (ym - start[1])
+    x, y, yaw = to_map_frame(xo, yo, yawm - start[2], start)
+    assert np.allclose(x, xm) and np.allclose(y, ym)
+    assert np.allclose(np.cos(yaw), np.cos(yawm)) and np.allclose(np.sin(yaw), np.sin(yawm))
+
+
+# --- processes over DDS ---------------------------------------------------------------------------
+pytestmark_dds = pytest.mark.skipif(
+    os.environ.get("AMBIEGEN_TRANSPORT", "auto") == "rclpy", reason="these tests drive the DDS backend"
+)
+
+
+class Procs:
+    """Node subprocesses of one test, stopped by pid at the end."""
+
+    def __init__(self, domain: int, log_dir: Path):
+        self.env = dict(os.environ, ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED="1")
+        self.env.pop("AMBIEGEN_TRANSPORT", None)
+        self.log_dir = log_dir
+        self.procs: dict[str, subprocess.Popen] = {}
+
+    def start(self, name: str, module: str, **params: Any) -> subprocess.Popen:
+        args = [sys.executable, "-m", module, "--ros-args", "-r", f"__node:={name}"]
+        for key, value in params.items():
+            value = ("true" if value else "false") if isinstance(value, bool) else value
+            args += ["-p", f"{key}:={value}"]
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        with open(self.log_dir / f"{name}.log", "wb") as log:
+            self.procs[name] = subprocess.Popen(args, cwd=REPO, env=self.env, stdout=log, stderr=subprocess.STDOUT)
+        return self.procs[name]
+
+    def log(self, name: str) -> str:
+        return (self.log_dir / f"{name}.log").read_text(errors="replace")
+
+    def logs(self) -> str:
+        return "\n".join(f"--- {n}\n{self.log(n)[-2500:]}" for n in self.procs)
+
+    def stop_all(self) -> None:
+        for proc in self.procs.values():
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGINT)
+        for proc in self.procs.values():
+            try:
+                proc.wait(5)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+
+
+@pytest.fixture
+def graph(tmp_path, monkeypatch):
+    """make(domain) -> (Procs, driver node in this process on that domain)."""
+    made = []
+
+    def make(domain: int):
+        from ambiegen_ros.ros.transport import create_node
+
+        monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
+        monkeypatch.delenv("AMBIEGEN_TRANSPORT", raising=False)
+        procs = Procs(domain, tmp_path / f"logs{domain}")
+        node = create_node("adapter_test_driver", argv=[])
+        made.append((procs, node))
+        return procs, node
+
+    yield make
+    for procs, node in made:
+        node.shutdown()
+        procs.stop_all()
+
+
+class Driver:
+    """Publishes scenario messages like the generator and collects every result."""
+
+    def __init__(self, node, problem):
+        from ambiegen_ros.ros import topics
+        from ambiegen_ros.ros.qos import STREAM
+
+        self.node, self.problem, self.conv = node, problem, conversions
+        self.pub = node.create_publisher(topics.SCENARIO_TYPES[problem.name], topics.scenarios(problem.name), STREAM)
+        self.results: dict[tuple[str, int], Any] = {}
+        self.workers: dict[tuple[str, int], str] = {}
+        self.scenarios: dict[tuple[str, int], Any] = {}
+        node.create_subscription(topics.RESULT_TYPE, topics.RESULTS, self.on_result, STREAM)
+        node.create_subscription(topics.SCENARIO_TYPES[problem.name], topics.scenarios(problem.name),
+                                 self.on_scenario, STREAM)
+
+    def on_result(self, msg) -> None:
+        key = (msg.run_id, int(msg.scenario_id))
+        self.results.setdefault(key, self.conv.outcome_from_message(msg))
+        self.workers.setdefault(key, msg.worker)
+
+    def on_scenario(self, msg) -> None:
+        scenario, _ = self.conv.scenario_from_message(self.problem, msg)
+        self.scenarios[(msg.meta.run_id, int(msg.meta.scenario_id))] = scenario
+
+    def wait_matched(self, count: int = 1, timeout: float = 20.0) -> None:
+        assert self.node.spin_until(lambda: self.pub.subscription_count() >= count + 1, timeout), "adapter not matched"
+
+    def send(self, run_id: str, scenarios: list) -> None:
+        from ambiegen_ros.ros.conversions import ScenarioMeta
+
+        for i, sc in enumerate(scenarios):
+            msg = self.conv.scenario_message(self.node.new_message, self.node.now_ns(), self.problem, sc,
+                                             ScenarioMeta(run_id, i))
+            self.pub.publish(msg)
+
+    def wait(self, run_id: str, count: int, timeout: float) -> list:
+        done = lambda: sum(k[0] == run_id for k in self.results) >= count  # noqa: E731
+        self.node.spin_until(done, timeout)
+        return [self.results.get((run_id, i)) for i in range(count)]
+
+
+def start_pair(procs: Procs, problem: str, scale: float, **adapter) -> None:
+    procs.start("external", "sim_nodes.external_sim", problem=problem, time_scale=scale)
+    procs.start("adapter", "sim_nodes.sut_adapter", problem=problem, time_scale=scale, worker_id="sut", **adapter)
+
+
+@pytestmark_dds
+def test_robot_runs_through_the_adapter_as_in_process(graph, problems):
+    p = problems["robot"]
+    procs, node = graph(141)
+    start_pair(procs, "robot", 150.0, run_invalid=True)
+    driver = Driver(node, p)
+    driver.wait_matched()
+    scs = [scenario(p, easy_robot_elements()), scenario(p, walled_goal_elements())]
+    t0 = time.monotonic()
+    driver.send("crafted", scs)
+    got = driver.wait("crafted", 2, 60)
+    wall = time.monotonic() - t0
+    assert all(got), procs.logs()
+    full = full_model_executor(p, run_invalid=True)
+    for sc, res in zip(scs, got):
+        ref = full.execute(sc, seed=0)
+        assert (res.failure_kind, res.failed) == (ref.failure_kind, ref.failed), (res.detail, ref.detail)
+        assert float(res.metrics["time"]) == pytest.approx(ref.metrics["time"], abs=1e-6)
+        assert float(res.metrics["path_length"]) == pytest.approx(ref.metrics["path_length"], abs=1e-6)
+        assert res.objectives["robot_time"] == pytest.approx(ref.objectives["robot_time"], abs=1e-6)
+        assert len(res.trajectory) == len(ref.trajectory)
+    assert [r.failure_kind for r in got] == ["none", "stall"]
+    assert got[1].metrics["valid"] == "False"  # run anyway (run_invalid), and said so
+    print(f"robot through the adapter: {len(scs)} scenarios in {wall:.1f} s")
+
+
+@pytestmark_dds
+def test_vehicle_campaign_through_the_adapter_matches_the_full_model(graph, problems):
+    p = problems["vehicle"]
+    procs, node = graph(142)
+    start_pair(procs, "vehicle", 40.0, min_result_subscribers=1)
+    driver = Driver(node, p)
+    driver.wait_matched()
+    crafted = [road(p, HAIRPIN), road(p, GENTLE)]
+    driver.send("crafted", crafted)
+    got = driver.wait("crafted", 2, 30)
+    assert [r and r.failure_kind for r in got] == ["out_of_lane", "none"], procs.logs()
+    # a small surrogate campaign whose final suite the generator hands to the adapter as a worker
+    t0 = time.monotonic()
+    gen = procs.start("generator", "ambiegen_ros.nodes.generator", problem="vehicle", evaluations=60,
+                      population=12, seed=4, run_id="camp", min_subscribers=2, min_workers=1,
+                      max_in_flight=2, result_timeout=30.0)
+    try:
+        assert gen.wait(60) == 0, procs.logs()
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"generator did not finish\n{procs.logs()}")
+    node.spin_until(lambda: False, 0.3)
+    wall = time.monotonic() - t0
+    camp = {k: v for k, v in driver.results.items() if k[0] == "camp"}
+    assert camp and set(camp) <= set(driver.scenarios), procs.logs()
+    full = full_model_executor(p)
+    for key, res in camp.items():
+        assert driver.workers[key] == "sut"
+        ref = full.execute(driver.scenarios[key], seed=0)
+        assert res.failure_kind == ref.failure_kind, (res.detail, ref.detail)
+        assert res.objectives.get("vehicle_max_oob", 0.0) == pytest.approx(ref.objectives.get("vehicle_max_oob", 0.0),
+                                                                           abs=1e-9)
+    print(f"vehicle campaign through the adapter: {len(camp)} scenarios in {wall:.1f} s (incl. search)")
+
+
+@pytestmark_dds
+def test_thermostat_through_the_adapter(graph, problems):
+    p = problems["thermostat"]
+    procs, node = graph(143)
+    start_pair(procs, "thermostat", 7200.0)
+    driver = Driver(node, p)
+    driver.wait_matched()
+    scs = [scenario(p, SWINGS), scenario(p, STEADY)]
+    driver.send("crafted", scs)
+    got = driver.wait("crafted", 2, 40)
+    assert all(got), procs.logs()
+    full = full_model_executor(p)
+    for sc, res in zip(scs, got):
+        ref = full.execute(sc, seed=0)
+        assert res.failure_kind == ref.failure_kind, (res.detail, ref.detail)
+        # live set points reach the room within a few 10 s steps of their ideal time at 7200x
+        assert res.objectives["thermostat_rmse"] == pytest.approx(ref.metrics["rmse"], abs=0.25)
+        assert float(res.metrics["time"]) == pytest.approx(ref.metrics["time"])
+    assert [r.failure_kind for r in got] == ["requirement", "none"]
+
+
+@pytestmark_dds
+def test_adapter_without_a_system_under_test_answers_with_an_error(graph, problems):
+    p = problems["vehicle"]
+    procs, node = graph(144)
+    procs.start("adapter", "sim_nodes.sut_adapter", problem="vehicle", worker_id="sut", start_timeout=1.0)
+    driver = Driver(node, p)
+    driver.wait_matched()
+    t0 = time.monotonic()
+    driver.send("lonely", [road(p, GENTLE)])
+    (res,) = driver.wait("lonely", 1, 10)
+    assert res is not None, procs.logs()
+    assert res.failure_kind == "error" and not res.failed
+    assert "no odometry within 1 s" in res.detail and "/odom" in res.detail
+    assert time.monotonic() - t0 < 4.0
+
+
+def test_bad_parameters_exit_with_status_2():
+    env = dict(os.environ, ROS_DOMAIN_ID="149")
+    env.pop("AMBIEGEN_TRANSPORT", None)
+    for module, args in (("sim_nodes.sut_adapter", ["-p", "stamp_clock:=sundial"]),
+                         ("sim_nodes.external_sim", ["-p", "problem:=submarine"])):
+        run = subprocess.run([sys.executable, "-m", module, "--ros-args", *args], cwd=REPO, env=env,
+                             capture_output=True, text=True, timeout=30)
+        assert run.returncode == 2 and "error:" in run.stderr and "Traceback" not in run.stderr, run.stderr
+
+
+@pytestmark_dds
+def test_a_foreign_robot_stack_with_a_bumper(graph, problems):
+    """A hand-written SUT: odometry relative to its spawn pose with zero stamps, and a bumper topic."""
+    p = problems["robot"]
+    procs, node = graph(145)
+    procs.start("adapter", "sim_nodes.sut_adapter", problem="robot", worker_id="sut", collision_topic="/bumper",
+                odom_frame="start", stamp_clock="receive", time_scale=1.0, settle_time=0.1)
+    driver = Driver(node, p)
+    seen: dict[str, Any] = {}
+    node.create_subscription("geometry_msgs/msg/PoseWithCovarianceStamped", "/initialpose",
+                             lambda m: seen.setdefault("start", m.pose.pose.position.x), DEFAULT)
+    node.create_subscription("geometry_msgs/msg/PoseStamped", "/goal_pose",
+                             lambda m: seen.setdefault("goal", time.monotonic()), DEFAULT)
+    odom = node.create_publisher("nav_msgs/msg/Odometry", "/odom", DEFAULT)
+    bumper = node.create_publisher("std_msgs/msg/Bool", "/bumper", DEFAULT)
+    make = node.new_message
+
+    def drive() -> None:
+        if "goal" not in seen:
+            return
+        # 0.1 m forward of the spawn pose, stamps left at zero (hence stamp_clock receive)
+        odom.publish(make("nav_msgs/msg/Odometry", pose=make("geometry_msgs/msg/PoseWithCovariance",
+                                                             pose=conversions.pose(make, 0.1, 0.0))))
+        if time.monotonic() - seen["goal"] > 0.5:
+            bumper.publish(make("std_msgs/msg/Bool", data=True))
+
+    node.create_timer(0.02, drive)
+    driver.wait_matched()
+    driver.send("bump", [scenario(p, easy_robot_elements())])
+    (res,) = driver.wait("bump", 1, 15)
+    assert res is not None, procs.logs()
+    assert res.failure_kind == "collision" and res.failed and "/bumper" in res.detail
+    assert seen["start"] == pytest.approx(1.5)
+    # start pose (1.5, 1.5, heading 0) + 0.1 m along x, in the map frame
+    assert np.allclose(res.trajectory, [[1.6, 1.5]]) and 0.3 <= float(res.metrics["time"]) <= 2.0
