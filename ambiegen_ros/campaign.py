@@ -40,6 +40,8 @@ class CampaignSpec:
     result_timeout: float = 30.0
     timeout: float = 3600.0
     extra_env: dict[str, str] = field(default_factory=dict)
+    generator_params: dict[str, Any] = field(default_factory=dict)  # further ROS parameters of the generator
+    sim_model: str = "full"  # the workers' executor: full-model simulator + oracle, or the surrogate
 
 
 def _ros_params(**params: Any) -> list[str]:
@@ -53,6 +55,36 @@ def _ros_params(**params: Any) -> list[str]:
     return args
 
 
+class ProcessGroup:
+    """Node subprocesses with their logs in one folder; stopped with SIGINT, SIGKILL as a last resort."""
+
+    def __init__(self, log_dir: Path, env: dict[str, str]):
+        self.log_dir = Path(log_dir)
+        self.env = env
+        self.procs: dict[str, subprocess.Popen] = {}
+
+    def start(self, name: str, module: str, args: list[str]) -> subprocess.Popen:
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        log = open(self.log_dir / f"{name}.log", "wb")
+        self.procs[name] = subprocess.Popen(
+            [sys.executable, "-m", module, *args], env=self.env, stdout=log, stderr=subprocess.STDOUT
+        )
+        log.close()
+        return self.procs[name]
+
+    def stop(self, order: list[str] | None = None, timeout: float = 15.0) -> None:
+        for name in order or list(self.procs):
+            proc = self.procs.get(name)
+            if proc is None or proc.poll() is not None:
+                continue
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+
+
 class Campaign:
     def __init__(self, spec: CampaignSpec):
         self.spec = spec
@@ -60,19 +92,13 @@ class Campaign:
         self.run_id = f"{spec.problem}-{spec.algorithm}-s{spec.seed}-{uuid.uuid4().hex[:6]}"
         self.out = Path(spec.out)
         self.mcap = self.out / f"{self.run_id}.mcap"
-        self.procs: dict[str, subprocess.Popen] = {}
         self.env = dict(os.environ, **spec.extra_env)
         if spec.domain_id is not None:
             self.env["ROS_DOMAIN_ID"] = str(spec.domain_id)
         self.env.setdefault("PYTHONUNBUFFERED", "1")
-
-    def _start(self, name: str, module: str, args: list[str]) -> None:
-        logs = self.out / "logs"
-        logs.mkdir(parents=True, exist_ok=True)
-        log = open(logs / f"{name}.log", "wb")
-        self.procs[name] = subprocess.Popen(
-            [sys.executable, "-m", module, *args], env=self.env, stdout=log, stderr=subprocess.STDOUT
-        )
+        self.group = ProcessGroup(self.out / "logs", self.env)
+        self.procs = self.group.procs
+        self._start = self.group.start
 
     def run(self, progress=None) -> dict[str, Any]:
         spec = self.spec
@@ -85,7 +111,15 @@ class Campaign:
                 name,
                 SIM_MODULES[spec.problem],
                 ["--ros-args", "-r", f"__node:={name}"]
-                + _ros_params(worker_id=name, min_result_subscribers=2, config_file=spec.config)[1:],
+                + _ros_params(
+                    worker_id=f"{name}_{self.run_id[-6:]}",  # unique per run: campaigns may share a domain
+                    model=spec.sim_model,
+                    seed=spec.seed,
+                    # stream Odometry/Temperature for the executed suite; in the loop it would be every evaluation
+                    timeline_period=0.0 if spec.mode == "in_the_loop" else None,
+                    min_result_subscribers=2,
+                    config_file=spec.config,
+                )[1:],
             )
         self._start(
             "generator",
@@ -102,8 +136,10 @@ class Campaign:
                 run_id=self.run_id,
                 config_file=spec.config,
                 min_subscribers=spec.workers + 1,
+                min_workers=spec.workers,
                 subscriber_wait=30.0,
                 result_timeout=spec.result_timeout,
+                **spec.generator_params,
             ),
         )
         generator = self.procs["generator"]
@@ -129,18 +165,8 @@ class Campaign:
 
     def _stop_all(self) -> None:
         """Generator first (it may still be writing timeouts), then workers, recorder last."""
-        order = ["generator"] + [n for n in self.procs if n not in ("generator", "recorder")] + ["recorder"]
         time.sleep(0.3)  # let the last results reach the recorder
-        for name in order:
-            proc = self.procs.get(name)
-            if proc is None or proc.poll() is not None:
-                continue
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
+        self.group.stop(["generator"] + [n for n in self.procs if n not in ("generator", "recorder")] + ["recorder"])
 
     def _summary(self, elapsed: float) -> dict[str, Any]:
         spec = self.spec
@@ -149,6 +175,7 @@ class Campaign:
             "problem": spec.problem,
             "algorithm": spec.algorithm,
             "mode": spec.mode,
+            "sim_model": spec.sim_model,
             "seed": spec.seed,
             "workers": spec.workers,
             "domain_id": self.env.get("ROS_DOMAIN_ID", "0"),
@@ -186,13 +213,39 @@ def register_cli(sub) -> None:
     p.add_argument("--offspring", type=int)
     p.add_argument("--seed", type=int, help="random seed (default: drawn and recorded)")
     p.add_argument("--workers", type=int, default=1, help="sim workers sharing the scenarios (default 1)")
-    p.add_argument("--mode", default="surrogate", choices=("surrogate", "in_the_loop"))
+    p.add_argument("--mode", default="surrogate", choices=("surrogate", "in_the_loop"),
+                   help="surrogate: search with the surrogate, then execute the suite; in_the_loop: every F1 from the sims")
+    p.add_argument("--sim-model", default="full", choices=("full", "surrogate"),
+                   help="what the sim workers run: full-model simulator + failure oracle (default) or the surrogate")
     p.add_argument("--config", metavar="FILE.yaml", help="run config (search settings + problem_config)")
     p.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID for all nodes (default: inherited, else 0)")
     p.add_argument("--result-timeout", type=float, default=30.0, help="seconds to wait for each result")
+    p.add_argument(
+        "--max-in-flight", type=int, help="scenarios in flight per worker (generator default 8; more suits fast, vectorised sims)"
+    )
     p.add_argument("--timeout", type=float, default=3600.0, help="stop the campaign after this many seconds")
     p.add_argument("--out", required=True, metavar="DIR")
     p.set_defaults(func=cmd_campaign)
+
+    p = sub.add_parser(
+        "replay",
+        help="re-publish a log's scenarios, or re-execute them on running sim/SUT nodes and compare results",
+        description=(
+            "Without --execute: re-publish the scenario messages byte for byte with their recorded QoS. "
+            "With --execute: run them again on the sim/SUT nodes on the graph (or on --workers K spawned "
+            "sim workers), record the new results (--record) and write a regression report."
+        ),
+    )
+    p.add_argument("log", metavar="LOG.mcap")
+    p.add_argument("--execute", action="store_true", help="re-execute and compare instead of re-publishing")
+    p.add_argument("--rate", type=float, default=1.0, help="publish: speed factor of the recorded pace (0 = at once)")
+    p.add_argument("--workers", type=int, default=0, help="execute: also start K sim workers for the log's problem")
+    p.add_argument("--record", metavar="OUT.mcap", help="execute: also start a recorder writing this file")
+    p.add_argument("--sim-model", default="full", choices=("full", "surrogate"), help="execute: what spawned workers run")
+    p.add_argument("--report", metavar="FILE.json", help="execute: regression report (default LOG.replay.json)")
+    p.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID (default: inherited, else 0)")
+    p.add_argument("--result-timeout", type=float, default=30.0, help="seconds to wait for each result")
+    p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("recover", help="rebuild a valid MCAP from one cut short by SIGKILL")
     p.add_argument("mcap", metavar="FILE.mcap")
@@ -220,6 +273,8 @@ def cmd_campaign(args) -> int:
         domain_id=args.domain_id,
         result_timeout=args.result_timeout,
         timeout=args.timeout,
+        generator_params={} if args.max_in_flight is None else {"max_in_flight": args.max_in_flight},
+        sim_model=args.sim_model,
     )
     campaign = Campaign(spec)
     tty = sys.stderr.isatty()
@@ -236,6 +291,38 @@ def cmd_campaign(args) -> int:
     print(f"MCAP: {summary.get('mcap', campaign.mcap)}")
     ok = summary.get("exit_codes", {}).get("generator") == 0 and not summary.get("unresolved") and "log_error" not in summary
     return 0 if ok else 1
+
+
+def cmd_replay(args) -> int:
+    from .cli import BadInput
+    from .nodes.replay import Replay, recorded_scenarios
+    from .ros.transport import create_node
+
+    if not Path(args.log).exists():
+        raise BadInput(f"{args.log}: no such file")
+    if args.domain_id is not None:
+        os.environ["ROS_DOMAIN_ID"] = str(args.domain_id)
+    group = ProcessGroup(Path(args.report or args.log).parent / "replay_logs", dict(os.environ))
+    expected = 1
+    if args.execute and (args.workers or args.record):
+        problem = recorded_scenarios(args.log)[0]
+        if args.record:
+            group.start("recorder", "ambiegen_ros.nodes.recorder", _ros_params(output=str(Path(args.record).resolve())))
+        for k in range(args.workers):
+            name = f"{problem}_sim_{k}"
+            group.start(name, SIM_MODULES[problem], ["--ros-args", "-r", f"__node:={name}"] + _ros_params(worker_id=name, model=args.sim_model, min_result_subscribers=1 + bool(args.record))[1:])
+        expected = max(args.workers, 1) + bool(args.record)
+    params = {"mode": "execute" if args.execute else "publish", "rate": args.rate, "min_subscribers": expected,
+              "result_timeout": args.result_timeout, "report": args.report or ""}
+    node = create_node("replay", argv=["replay"], parameter_overrides=params)
+    try:
+        replay = Replay(node=node, log=args.log)
+        code = replay.run()
+    finally:
+        group.stop()
+    if replay.report:
+        print(json.dumps({k: v for k, v in replay.report.items() if k != "entries"}, indent=2))
+    return code
 
 
 def cmd_recover(args) -> int:

@@ -51,7 +51,8 @@ class Generator:
         self.mode = p("mode", "surrogate", "surrogate | in_the_loop")
         self.run_id = p("run_id", "", "run id ('' = generated)") or f"run-{uuid.uuid4().hex[:8]}"
         self.min_subscribers = p("min_subscribers", 1, "scenario subscribers to wait for before publishing")
-        self.subscriber_wait = p("subscriber_wait", 10.0, "seconds to wait for them")
+        self.min_workers = p("min_workers", 0, "sim workers (heartbeats) to wait for before publishing")
+        self.subscriber_wait = p("subscriber_wait", 10.0, "seconds to wait for subscribers and workers")
         self.exit_when_done = p("exit_when_done", True, "shut down when every scenario is settled")
         status_period = p("status_period", 0.5, "seconds between run status messages")
         self.dispatcher = Dispatcher(
@@ -94,6 +95,7 @@ class Generator:
         self.timeouts = 0
         self.failures = 0
         self.errors = 0
+        self.invalid = 0
         self.batch: list[int] = []  # in_the_loop: scenario ids of the rows asked last
         self.generation = 0
         self.pub_config.publish(
@@ -109,11 +111,14 @@ class Generator:
     def step(self) -> None:
         now = time.monotonic()
         if self.state == "waiting":
-            matched = self.pub_scenarios.subscription_count() >= self.min_subscribers
+            subscribers = self.pub_scenarios.subscription_count()
+            workers = len(self.dispatcher.alive(now))
+            matched = subscribers >= self.min_subscribers and workers >= self.min_workers
             if matched or now - self.waiting_since > self.subscriber_wait:
                 if not matched:
                     self.node.logger.warning(
-                        f"only {self.pub_scenarios.subscription_count()} of {self.min_subscribers} subscribers; going on"
+                        f"{subscribers} of {self.min_subscribers} subscribers and {workers} of "
+                        f"{self.min_workers} workers after {self.subscriber_wait:g} s; going on"
                     )
                 if self.mode == "surrogate":
                     self.state = "searching"
@@ -209,7 +214,7 @@ class Generator:
         self.publish_status()
         self.node.logger.info(
             f"run {self.run_id} done: {self.published} scenarios, {len(self.outcomes)} settled, "
-            f"{self.failures} failures, {self.timeouts} timeouts, {self.errors} errors"
+            f"{self.failures} failures, {self.timeouts} timeouts, {self.errors} errors, {self.invalid} invalid"
         )
         if self.exit_when_done:
             # let reliable writers deliver the last samples before the process ends
@@ -230,7 +235,8 @@ class Generator:
             outcome = Outcome.rejected(f"unreadable result: {exc}", kind="error")
         self.outcomes[int(msg.scenario_id)] = outcome
         self.failures += outcome.failed
-        self.errors += outcome.failure_kind in ("error", "invalid_scenario")
+        self.errors += outcome.failure_kind == "error"
+        self.invalid += outcome.failure_kind == "invalid_scenario"
 
     def on_worker(self, msg: Any) -> None:
         if msg.hardware_id == self.problem.name:

@@ -93,11 +93,17 @@ def _text(value: Any) -> str:
 
 
 # --- scenarios -----------------------------------------------------------------------------------
-def scenario_header(make: Make, now_ns: int, problem: Problem, scenario: Scenario, meta: ScenarioMeta) -> Any:
+def genome_cells(problem: Problem, scenario: Scenario) -> np.ndarray:
+    """The scenario's used genome cells as an (elements, attributes) matrix of codes."""
+    G, lengths = problem.codec.split(problem.codec.to_row(scenario))
+    return G[0, : lengths[0]]
+
+
+def scenario_header(
+    make: Make, now_ns: int, problem: Problem, scenario: Scenario, meta: ScenarioMeta, cells: np.ndarray | None = None
+) -> Any:
     codec = problem.codec
-    row = codec.to_row(scenario)
-    G, lengths = codec.split(row)
-    genome = G[0, : lengths[0]].reshape(-1)
+    genome = (genome_cells(problem, scenario) if cells is None else cells).reshape(-1)
     categorical = ["|".join(map(str, a.values)) if isinstance(a, Categorical) else "" for a in codec.attributes]
     return make(
         "ambiegen_msgs/msg/ScenarioHeader",
@@ -122,8 +128,22 @@ def scenario_header(make: Make, now_ns: int, problem: Problem, scenario: Scenari
 
 def scenario_message(make: Make, now_ns: int, problem: Problem, scenario: Scenario, meta: ScenarioMeta) -> Any:
     """The problem's scenario message: the genome plus its environment in standard types."""
-    meta_msg = scenario_header(make, now_ns, problem, scenario, meta)
+    cells = genome_cells(problem, scenario)
+    meta_msg = scenario_header(make, now_ns, problem, scenario, meta, cells)
     typename = topics.SCENARIO_TYPES[problem.name]
+    if problem.name == "thermostat":
+        # Straight from the genome: problem.environment() would simulate the whole schedule
+        # (~10 ms) only to hand back these columns. The room starts at the first set point, as in
+        # ThermostatProblem.environment (a test keeps the two in step).
+        col = {name: j for j, name in enumerate(problem.codec.names)}
+        return make(
+            typename,
+            meta=meta_msg,
+            setpoints=np.ascontiguousarray(cells[:, col["temperature"]], dtype=np.float64),
+            durations_min=np.rint(cells[:, col["duration"]]).astype(np.uint32),
+            room_models=np.rint(cells[:, col["model"]]).astype(np.uint8),
+            initial_temperature=float(cells[0, col["temperature"]]) if len(cells) else 0.0,
+        )
     env = problem.environment(scenario)
     if problem.name == "robot":
         return make(typename, meta=meta_msg, map=occupancy_grid(make, now_ns, env), start=pose_stamped(make, now_ns, *env.start_m), goal=pose_stamped(make, now_ns, *env.goal_m))
@@ -133,19 +153,10 @@ def scenario_message(make: Make, now_ns: int, problem: Problem, scenario: Scenar
             typename,
             meta=meta_msg,
             road=path(make, now_ns, env.nodes),
-            road_points=[make("geometry_msgs/msg/Point", x=float(x), y=float(y), z=0.0) for x, y in np.asarray(env.points)],
+            road_points=[make("geometry_msgs/msg/Point", x=float(x), y=float(y), z=0.0) for x, y in np.asarray(env.spine, dtype=float).reshape(-1, 2)],
             lane_width=float(env.lane_width),
             speed_limit=float(getattr(cfg, "speed_limit", 70 / 3.6)),
             map_size=float(cfg.map_size),
-        )
-    if problem.name == "thermostat":
-        return make(
-            typename,
-            meta=meta_msg,
-            setpoints=np.asarray(env.setpoints, dtype=np.float64),
-            durations_min=np.asarray(env.durations, dtype=np.uint32),
-            room_models=np.asarray(env.models, dtype=np.uint8),
-            initial_temperature=float(env.initial_temperature),
         )
     raise ScenarioError("problem", f"no ROS message for problem {problem.name!r}", "|".join(topics.SCENARIO_TYPES))
 
@@ -246,6 +257,48 @@ def outcome_from_message(msg: Any) -> Outcome:
     )
 
 
+# --- executed timelines (standard messages, so Foxglove can show a run) ----------------------------
+def timeline_messages(make: Make, start_ns: int, problem: str, timeline: dict[str, Any], period_s: float) -> list[Any]:
+    """Odometry (robot, car) or Temperature (thermostat) samples every ``period_s`` simulated seconds.
+
+    Stamps are the execution's start plus simulated time, so a log replays the run in order.
+    """
+    t = np.asarray(timeline.get("t", []), dtype=float)
+    if len(t) == 0:
+        return []
+    keep = np.unique(np.searchsorted(t, np.arange(t[0], t[-1] + 1e-9, max(period_s, 1e-9))).clip(0, len(t) - 1))
+    keep = np.union1d(keep, [len(t) - 1])
+    out = []
+    for i in keep:
+        stamp_ns = start_ns + int(t[i] * 1e9)
+        if problem == "thermostat":
+            out.append(
+                make(
+                    "sensor_msgs/msg/Temperature",
+                    header=header(make, stamp_ns, frame_id="room"),
+                    temperature=float(timeline["temperature"][i]),
+                    variance=0.0,
+                )
+            )
+            continue
+        x, y, yaw = float(timeline["x"][i]), float(timeline["y"][i]), float(timeline["yaw"][i])
+        v = float(timeline["v"][i]) if "v" in timeline else 0.0
+        twist = make(
+            "geometry_msgs/msg/TwistWithCovariance",
+            twist=make("geometry_msgs/msg/Twist", linear=make("geometry_msgs/msg/Vector3", x=v, y=0.0, z=0.0)),
+        )
+        out.append(
+            make(
+                "nav_msgs/msg/Odometry",
+                header=header(make, stamp_ns),
+                child_frame_id="base_link",
+                pose=make("geometry_msgs/msg/PoseWithCovariance", pose=pose(make, x, y, yaw)),
+                twist=twist,
+            )
+        )
+    return out
+
+
 # --- run status / config -------------------------------------------------------------------------
 def run_config_message(make: Make, now_ns: int, run_id: str, config: dict[str, Any], version: str) -> Any:
     return make(
@@ -264,7 +317,7 @@ def status_message(make: Make, now_ns: int, **fields: Any) -> Any:
 def heartbeat_message(make: Make, worker: str, problem: str, in_flight: int, executed: int) -> Any:
     return make(
         topics.WORKERS_TYPE,
-        level=b"\x00" if False else 0,
+        level=0,
         name=worker,
         message="busy" if in_flight else "idle",
         hardware_id=problem,

@@ -27,6 +27,18 @@ SCENARIO_TYPES = {
 }
 
 
+TIMELINE_TYPES = {
+    "thermostat": "sensor_msgs/msg/Temperature",
+    "robot": "nav_msgs/msg/Odometry",
+    "vehicle": "nav_msgs/msg/Odometry",
+}
+
+
+def timeline(problem: str) -> str:
+    """Where full-model sims stream what happened: robot/car odometry, room temperature."""
+    return f"{NAMESPACE}/{problem}/" + ("temperature" if problem == "thermostat" else "odom")
+
+
 def scenarios(problem: str) -> str:
     """The scenario topic of one problem, e.g. ``/ambiegen/robot/scenarios``."""
     return f"{NAMESPACE}/{problem}/scenarios"
@@ -41,4 +53,5 @@ def run_topics() -> list[tuple[str, str, Qos]]:
         (RESULTS, RESULT_TYPE, STREAM),
     ]
     topics += [(scenarios(p), t, STREAM) for p, t in SCENARIO_TYPES.items()]
+    topics += [(timeline(p), t, STREAM) for p, t in TIMELINE_TYPES.items()]
     return topics

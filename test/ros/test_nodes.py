@@ -1,0 +1,561 @@
+"""The ROS 2 layer end to end: real node processes talking over real DDS (Cyclone from PyPI).
+
+Every multi-process test runs its nodes as subprocesses on its own ROS_DOMAIN_ID (120..139), so
+tests cannot see each other, and reads the run back from the MCAP log with independent readers
+(rosbags' AnyReader decodes with the schema text stored in the file; the ``mcap`` library reads
+channel metadata and metadata records). Budgets are small; every wait is bounded.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+REPO = Path(__file__).resolve().parents[2]
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from mcap.reader import make_reader  # noqa: E402
+from rosbags.highlevel import AnyReader  # noqa: E402
+from rosbags.interfaces import QosDurability, QosReliability  # noqa: E402
+
+from ambiegen_ros.problems import get_problem  # noqa: E402
+from ambiegen_ros.ros import conversions, topics  # noqa: E402
+from ambiegen_ros.ros.conversions import ScenarioMeta  # noqa: E402
+from ambiegen_ros.ros.qos import LATCHED, STREAM  # noqa: E402
+from ambiegen_ros.ros.runlog import summarize  # noqa: E402
+from ambiegen_ros.ros.types import get_registry  # noqa: E402
+from ambiegen_ros.sims.outcome import FAILURE_KINDS  # noqa: E402
+
+pytestmark = pytest.mark.skipif(
+    os.environ.get("AMBIEGEN_TRANSPORT", "auto") == "rclpy", reason="these tests drive the DDS backend"
+)
+
+SIM_MODULES = {"robot": "sim_nodes.robot_sim", "vehicle": "sim_nodes.car_sim", "thermostat": "sim_nodes.thermostat_sim"}
+SIM_TIMEOUT = FAILURE_KINDS["sim_timeout"]
+INVALID = FAILURE_KINDS["invalid_scenario"]
+DONE = re.compile(
+    r"run (\S+) done: (\d+) scenarios, (\d+) settled, (\d+) failures, (\d+) timeouts, (\d+) errors, (\d+) invalid"
+)
+
+
+# --- process helpers -------------------------------------------------------------------------------
+def _env(domain: int) -> dict[str, str]:
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED="1")
+    env.pop("AMBIEGEN_TRANSPORT", None)
+    return env
+
+
+def _value(v: Any) -> str:
+    return ("true" if v else "false") if isinstance(v, bool) else str(v)
+
+
+class Nodes:
+    """Node subprocesses of one test; whatever is still running at teardown is stopped by pid."""
+
+    def __init__(self, domain: int, log_dir: Path):
+        self.domain = domain
+        self.log_dir = log_dir
+        self.procs: dict[str, subprocess.Popen] = {}
+
+    def start(self, name: str, module: str, **params: Any) -> subprocess.Popen:
+        args = [sys.executable, "-m", module, "--ros-args", "-r", f"__node:={name}"]
+        for key, value in params.items():
+            args += ["-p", f"{key}:={_value(value)}"]
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        with open(self.log_dir / f"{name}.log", "wb") as log:
+            proc = subprocess.Popen(args, cwd=REPO, env=_env(self.domain), stdout=log, stderr=subprocess.STDOUT)
+        self.procs[name] = proc
+        return proc
+
+    def log(self, name: str) -> str:
+        return (self.log_dir / f"{name}.log").read_text(errors="replace")
+
+    def wait(self, name: str, timeout: float) -> int:
+        try:
+            return self.procs[name].wait(timeout)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"{name} still running after {timeout} s; log:\n{self.log(name)[-3000:]}")
+
+    def stop(self, name: str, timeout: float = 10.0) -> int:
+        proc = self.procs[name]
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+                pytest.fail(f"{name} ignored SIGINT for {timeout} s")
+        return proc.returncode
+
+    def cleanup(self) -> None:
+        for proc in self.procs.values():
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+
+
+@pytest.fixture
+def nodes_factory(tmp_path):
+    made: list[Nodes] = []
+
+    def make(domain: int) -> Nodes:
+        nodes = Nodes(domain, tmp_path / f"logs{domain}")
+        made.append(nodes)
+        return nodes
+
+    yield make
+    for nodes in made:
+        nodes.cleanup()
+
+
+@pytest.fixture
+def test_node(monkeypatch):
+    """A node in this process on a given domain (DDS backend, as AMBIEGEN_TRANSPORT defaults)."""
+    from ambiegen_ros.ros.transport import create_node
+
+    created = []
+
+    def make(name: str, domain: int):
+        monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
+        node = create_node(name, argv=[])
+        created.append(node)
+        return node
+
+    yield make
+    for node in created:
+        node.shutdown()
+
+
+def _campaign(domain: int, out: Path, problem: str, algorithm: str, evaluations: int, **extra: Any) -> subprocess.Popen:
+    args = [sys.executable, "-m", "ambiegen_ros", "campaign", "--problem", problem, "--algorithm", algorithm,
+            "--evaluations", str(evaluations), "--seed", "1", "--domain-id", str(domain), "--out", str(out),
+            "--timeout", "90"]
+    for key, value in extra.items():
+        args += [f"--{key.replace('_', '-')}", str(value)]
+    return subprocess.Popen(args, cwd=REPO, env=_env(domain), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _read_run(mcap: Path) -> dict[str, Any]:
+    """Everything of a run as rosbags decodes it from the schema text stored in the file."""
+    run: dict[str, Any] = {"scenarios": [], "results": [], "status": [], "config": [], "connections": {}}
+    with AnyReader([mcap]) as reader:
+        run["connections"] = {c.topic: c for c in reader.connections}
+        for conn, stamp, raw in reader.messages():
+            msg = reader.deserialize(raw, conn.msgtype)
+            if conn.topic.endswith("/scenarios"):
+                m = msg.meta
+                run["scenarios"].append((int(m.scenario_id), m.assigned_worker, int(m.attempt), m.run_id, m.problem))
+            elif conn.topic == topics.RESULTS:
+                run["results"].append((int(msg.scenario_id), msg.worker, int(msg.failure_kind), msg.run_id, msg.detail))
+            elif conn.topic == topics.STATUS:
+                run["status"].append(msg)
+            elif conn.topic == topics.RUN_CONFIG:
+                run["config"].append(msg)
+    return run
+
+
+def _done_line(log: str) -> dict[str, Any]:
+    match = DONE.search(log)
+    assert match, f"no 'done' line in the generator log:\n{log[-2000:]}"
+    keys = ("run_id", "scenarios", "settled", "failures", "timeouts", "errors", "invalid")
+    return {k: (v if k == "run_id" else int(v)) for k, v in zip(keys, match.groups())}
+
+
+def _assert_summary_consistent(summary: dict[str, Any], out: Path) -> None:
+    brief = json.dumps({k: v for k, v in summary.items() if k != "outcomes"})
+    assert "log_error" not in summary, brief
+    assert all(code == 0 for code in summary["exit_codes"].values()), brief
+    assert summary["unresolved"] == [], brief
+    assert summary["scenarios_published"] > 0, brief
+    assert summary["results_received"] == summary["scenarios_published"] == summary["scenario_messages"], brief
+    assert sum(summary["outcomes"].values()) == summary["results_received"], brief
+    assert summary["timeouts"] == 0 and summary["errors"] == 0 and summary["duplicate_results"] == 0, brief
+    assert summary["final_state"] == "done", brief
+    assert "ambiegen_run" in summary["metadata"], brief
+    done = _done_line((out / "logs" / "generator.log").read_text())
+    assert done["run_id"] == summary["run_id"]
+    assert (done["scenarios"], done["settled"]) == (summary["scenarios_published"], summary["results_received"]), brief
+    assert (done["failures"], done["timeouts"], done["errors"], done["invalid"]) == (
+        summary["failures"], summary["timeouts"], summary["errors"], summary["invalid"]
+    ), brief
+
+
+# --- no DDS: message contents the nodes rely on ---------------------------------------------------
+def test_thermostat_message_matches_its_environment():
+    """The thermostat message is built from the genome (no simulation); it must equal environment()."""
+    reg = get_registry()
+    problem = get_problem("thermostat")
+    X = problem.codec.join(*problem.sample(20, np.random.default_rng(4)))
+    for i, row in enumerate(X):
+        scenario = problem.codec.from_row(row)
+        env = problem.environment(scenario)
+        msg = conversions.scenario_message(reg.new, 0, problem, scenario, ScenarioMeta("r", i))
+        assert list(msg.setpoints) == [float(v) for v in env.setpoints]
+        assert list(msg.durations_min) == list(env.durations)
+        assert list(msg.room_models) == list(env.models)
+        assert msg.initial_temperature == env.initial_temperature
+        back, info = conversions.scenario_from_message(problem, reg.deserialize(reg.serialize(msg, msg.__msgtype__), msg.__msgtype__))
+        assert back.elements == scenario.elements and info["scenario_id"] == i
+
+
+def test_vehicle_message_carries_raw_and_interpolated_road():
+    reg = get_registry()
+    problem = get_problem("vehicle")
+    scenario = problem.codec.from_row(problem.codec.join(*problem.sample(1, np.random.default_rng(2)))[0])
+    env = problem.environment(scenario)
+    msg = conversions.scenario_message(reg.new, 0, problem, scenario, ScenarioMeta("r", 0))
+    assert [(p.x, p.y) for p in msg.road_points] == [tuple(map(float, p)) for p in env.spine]
+    assert len(msg.road.poses) == len(env.nodes) and msg.lane_width == env.lane_width
+
+
+# --- 1-3: campaigns through the CLI ------------------------------------------------------------------
+CAMPAIGNS = {
+    # name: (domain, problem, algorithm, evaluations, extra CLI options)
+    "thermostat": (120, "thermostat", "ga", 300, {"population": 20, "offspring": 20}),
+    "robot": (121, "robot", "nsga2", 200, {"population": 20, "offspring": 20}),
+    "vehicle": (122, "vehicle", "nsga2", 200, {"population": 20, "offspring": 20}),
+    "in_the_loop": (123, "thermostat", "ga", 240, {"population": 30, "offspring": 30, "mode": "in_the_loop", "workers": 2}),
+}
+
+
+@pytest.fixture(scope="module")
+def campaigns(tmp_path_factory):
+    """All campaigns at once (each on its own domain): exit code, summary and output folder."""
+    root = tmp_path_factory.mktemp("campaigns")
+    procs = {}
+    for name, (domain, problem, algorithm, evaluations, extra) in CAMPAIGNS.items():
+        procs[name] = _campaign(domain, root / name, problem, algorithm, evaluations, **extra)
+    out = {}
+    try:
+        for name, proc in procs.items():
+            stdout, stderr = proc.communicate(timeout=150)
+            summary_path = root / name / "summary.json"
+            summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
+            out[name] = (proc.returncode, summary, root / name, stdout + stderr)
+    finally:
+        for proc in procs.values():
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    return out
+
+
+@pytest.mark.parametrize("name", ["thermostat", "robot", "vehicle"])
+def test_surrogate_campaign_end_to_end(campaigns, name):
+    code, summary, out, output = campaigns[name]
+    assert code == 0, output[-3000:]
+    _assert_summary_consistent(summary, out)
+    evaluations = CAMPAIGNS[name][3]
+    assert summary["evaluations"] == evaluations and summary["mode"] == "surrogate"
+    suite = re.search(r"executing (\d+) suite scenarios", (out / "logs" / "generator.log").read_text())
+    assert suite and int(suite.group(1)) == summary["scenarios_published"]
+    assert f"MCAP: {summary['mcap']}" in output and Path(summary["mcap"]).parent == out
+
+
+def test_in_the_loop_campaign_end_to_end(campaigns):
+    code, summary, out, output = campaigns["in_the_loop"]
+    assert code == 0, output[-3000:]
+    _assert_summary_consistent(summary, out)
+    evaluations = CAMPAIGNS["in_the_loop"][3]
+    # in the loop every evaluation is a scenario executed by a sim node
+    assert summary["scenarios_published"] == evaluations == summary["evaluations"]
+    assert summary["mode"] == "in_the_loop"
+
+
+def test_mcap_read_back_by_rosbags_holds_the_whole_run(campaigns):
+    code, summary, out, _ = campaigns["in_the_loop"]
+    assert code == 0
+    mcap = Path(summary["mcap"])
+    run = _read_run(mcap)
+    done = _done_line((out / "logs" / "generator.log").read_text())
+    run_id = done["run_id"]
+    sids = [s[0] for s in run["scenarios"] if s[3] == run_id]
+    rids = [r[0] for r in run["results"] if r[3] == run_id]
+    assert len(sids) == len(set(sids)) == done["scenarios"] == summary["scenario_messages"]
+    assert sorted(sids) == list(range(done["scenarios"]))  # ids 0..N-1, each once
+    assert sorted(rids) == sorted(sids) and len(rids) == done["settled"]
+    assert len(run["config"]) == 1 and run["config"][0].run_id == run_id
+    assert run["status"] and run["status"][-1].state == "done"
+    assert run["status"][-1].results_received == done["settled"]
+
+    reg = get_registry()
+    conns = run["connections"]
+    scen_topic = topics.scenarios("thermostat")
+    for topic in (scen_topic, topics.RESULTS, topics.RUN_CONFIG, topics.STATUS):
+        conn = conns[topic]
+        assert conn.msgdef.data == reg.msgdef(conn.msgtype)  # the full ros2msg schema text
+        (qos,) = conn.ext.offered_qos_profiles
+        assert qos.reliability == QosReliability.RELIABLE
+    assert "ScenarioHeader meta" in conns[scen_topic].msgdef.data
+    assert conns[topics.RUN_CONFIG].ext.offered_qos_profiles[0].durability == QosDurability.TRANSIENT_LOCAL
+    assert conns[scen_topic].ext.offered_qos_profiles[0].depth == STREAM.depth
+
+    with open(mcap, "rb") as fh:
+        reader = make_reader(fh)
+        assert reader.get_header().profile == "ros2"
+        summ = reader.get_summary()
+        assert summ is not None and summ.statistics.message_count == sum(c.msgcount for c in conns.values())
+        for channel in summ.channels.values():
+            typename = summ.schemas[channel.schema_id].name
+            assert channel.metadata["topic_type_hash"] == reg.type_hash(typename)
+            assert channel.metadata["offered_qos_profiles"].startswith("- history: keep_last")
+        meta = {m.name: m.metadata for m in reader.iter_metadata()}
+    assert meta["ambiegen_run"]["run_id"] == run_id and meta["ambiegen_run"]["seed"] == "1"
+    config = json.loads(meta["ambiegen_run"]["config_json"])
+    assert config["seed"] == 1 and config["problem"] == "thermostat"
+    assert "version" in meta["ambiegen_recorder"]
+
+
+def test_two_workers_share_without_executing_twice(campaigns):
+    code, summary, out, _ = campaigns["in_the_loop"]
+    assert code == 0
+    run = _read_run(Path(summary["mcap"]))
+    workers = {r[1] for r in run["results"]}
+    suffix = summary["run_id"][-6:]  # worker ids are unique per run
+    assert workers == {f"thermostat_sim_0_{suffix}", f"thermostat_sim_1_{suffix}"}  # both used, nobody else answered
+    sids = [r[0] for r in run["results"]]
+    assert len(sids) == len(set(sids)) == summary["scenarios_published"]  # each executed once
+    assigned = {s[0]: s[1] for s in run["scenarios"]}
+    assert all(assigned[sid] == worker for sid, worker, *_ in run["results"])  # by the worker it was sent to
+    assert summary["scenario_messages"] == summary["scenarios_published"]  # nothing re-sent
+
+
+# --- 4: a worker killed mid-run ---------------------------------------------------------------------
+def test_killed_worker_loses_nothing(nodes_factory, test_node, tmp_path):
+    domain = 124
+    nodes = nodes_factory(domain)
+    mcap = tmp_path / "kill.mcap"
+    watcher = test_node("kill_watch", domain)
+    nodes.start("recorder", "ambiegen_ros.nodes.recorder", output=str(mcap), flush_period=0.5)
+    victim = nodes.start("w_a", "sim_nodes.thermostat_sim", worker_id="w_a", model="surrogate", min_result_subscribers=2)
+    nodes.start("w_b", "sim_nodes.thermostat_sim", worker_id="w_b", model="surrogate", min_result_subscribers=2)
+    state = {"a_results": 0, "killed_at": None}
+
+    def on_result(msg):
+        state["a_results"] += msg.worker == "w_a"
+
+    def on_scenario(msg):
+        # kill w_a the moment it has work in hand (after it proved it was working)
+        if state["killed_at"] is None and state["a_results"] >= 3 and msg.meta.assigned_worker == "w_a":
+            os.kill(victim.pid, signal.SIGKILL)
+            state["killed_at"] = int(msg.meta.scenario_id)
+
+    watcher.create_subscription(topics.RESULT_TYPE, topics.RESULTS, on_result, STREAM)
+    watcher.create_subscription(topics.SCENARIO_TYPES["thermostat"], topics.scenarios("thermostat"), on_scenario, STREAM)
+    gen = nodes.start(
+        "generator", "ambiegen_ros.nodes.generator", problem="thermostat", algorithm="ga", mode="in_the_loop",
+        evaluations=300, population=50, offspring=50, seed=5, run_id="kill-run", min_subscribers=4, min_workers=2,
+        subscriber_wait=20.0, worker_timeout=1.0, result_timeout=10.0, max_attempts=2,
+    )
+    deadline = time.monotonic() + 90
+    while gen.poll() is None and time.monotonic() < deadline:
+        watcher.spin_once(0.05)
+    assert gen.poll() == 0, nodes.log("generator")[-3000:]
+    assert state["killed_at"] is not None, "w_a was never caught with work in hand"
+    assert victim.wait(5) == -signal.SIGKILL
+    time.sleep(0.3)
+    nodes.stop("w_b")
+    assert nodes.stop("recorder") == 0
+
+    done = _done_line(nodes.log("generator"))
+    run = _read_run(mcap)
+    sids = {s[0] for s in run["scenarios"]}
+    by_sid: dict[int, list] = {}
+    for sid, worker, kind, *_ in run["results"]:
+        by_sid.setdefault(sid, []).append((worker, kind))
+    assert sids == set(range(300)) and done["scenarios"] == 300
+    assert set(by_sid) == sids  # every scenario ended with a result or an explicit timeout
+    # what w_a had in hand when it died was sent again, to w_b, and answered there (or timed out)
+    lost = {s[0] for s in run["scenarios"] if s[1] == "w_a" and s[2] == 1} - {
+        sid for sid, answers in by_sid.items() if any(w == "w_a" for w, _ in answers)
+    }
+    assert state["killed_at"] in lost
+    resent = {s[0]: s[1] for s in run["scenarios"] if s[2] == 2}
+    for sid in lost:
+        assert resent.get(sid) == "w_b", f"scenario {sid} was not re-assigned"
+        assert any(w == "w_b" or k == SIM_TIMEOUT for w, k in by_sid[sid])
+    assert {w for answers in by_sid.values() for w, _ in answers} >= {"w_a", "w_b"}
+    assert done["settled"] == 300 and summarize(mcap, "kill-run")["unresolved"] == []
+
+
+# --- 5: malformed scenario messages ------------------------------------------------------------------
+def test_malformed_scenarios_get_invalid_results_and_the_node_goes_on(nodes_factory, test_node):
+    domain = 125
+    nodes = nodes_factory(domain)
+    worker = nodes.start("thermostat_sim", "sim_nodes.thermostat_sim", worker_id="w_bad", model="surrogate", min_result_subscribers=1)
+    node = test_node("malformed_test", domain)
+    problem = get_problem("thermostat")
+    typename = topics.SCENARIO_TYPES["thermostat"]
+    pub = node.create_publisher(typename, topics.scenarios("thermostat"), STREAM)
+    results: dict[int, Any] = {}
+    node.create_subscription(
+        topics.RESULT_TYPE, topics.RESULTS, lambda m: results.setdefault(int(m.scenario_id), m) if m.run_id == "bad" else None, STREAM
+    )
+    scenario = problem.codec.from_row(problem.codec.join(*problem.sample(1, np.random.default_rng(0)))[0])
+
+    def message(sid: int):
+        return conversions.scenario_message(node.new_message, node.now_ns(), problem, scenario, ScenarioMeta("bad", sid))
+
+    def ask(msg, timeout=15.0):
+        sid = int(msg.meta.scenario_id)
+        pub.publish(msg)
+        assert node.spin_until(lambda: sid in results, timeout), f"no answer to scenario {sid}"
+        return results[sid]
+
+    assert node.wait_for_subscribers(pub, 1, 20.0)
+    # the worker's result publisher may match us a little later: retry a valid one until answered
+    deadline = time.monotonic() + 20
+    while 0 not in results and time.monotonic() < deadline:
+        pub.publish(message(0))
+        node.spin_until(lambda: 0 in results, 0.5)
+    assert results[0].failure_kind != INVALID
+
+    cases = []
+    m = message(1); m.meta.scenario_json = '{"problem": "thermostat", "elements": [{'; cases.append((m, "meta.scenario_json"))
+    m = message(2); m.meta.genome = m.meta.genome.copy(); m.meta.genome[1] = float("nan"); cases.append((m, "meta.genome"))
+    data = scenario.to_dict(); data["elements"][0]["temperature"] = 99
+    m = message(3); m.meta.scenario_json = json.dumps(data); cases.append((m, "elements[0].temperature"))
+    m = message(4); m.meta.problem = "robot"; cases.append((m, "meta.problem"))
+    m = message(5); m.meta.problem = "no_such_problem"; cases.append((m, "meta.problem"))
+    m = message(6); m.meta.genome = m.meta.genome[:-1].copy(); cases.append((m, "meta.genome"))
+    m = message(7); m.meta.scenario_json = '{"problem": "thermostat", "elements": [{"temperature": NaN}]}'
+    cases.append((m, "meta.scenario_json"))
+    data = scenario.to_dict(); data["elements"][0]["colour"] = "red"
+    m = message(8); m.meta.scenario_json = json.dumps(data); cases.append((m, "colour"))
+    m = node.new_message(typename); m.meta.run_id = "bad"; m.meta.scenario_id = 9; cases.append((m, "meta.problem"))
+    for msg, field in cases:
+        result = ask(msg)
+        assert result.failure_kind == INVALID and not result.failed, (field, result.detail)
+        assert field in result.detail, (field, result.detail)
+        assert result.worker == "w_bad" and len(result.objectives) == 0
+    assert worker.poll() is None
+    valid = ask(message(10))
+    assert valid.failure_kind != INVALID and valid.objectives[0] > 0 and math.isfinite(valid.elapsed_sec)
+    assert valid.objectives[0] == pytest.approx(float(results[0].objectives[0]))
+    assert nodes.stop("thermostat_sim") == 0
+
+
+# --- 6: nobody answers --------------------------------------------------------------------------------
+@pytest.mark.parametrize("domain,other_worker", [(126, None), (127, "robot")], ids=["no_worker", "other_problem_worker"])
+def test_unanswered_scenarios_end_as_sim_timeouts(nodes_factory, tmp_path, domain, other_worker):
+    nodes = nodes_factory(domain)
+    mcap = tmp_path / "timeouts.mcap"
+    nodes.start("recorder", "ambiegen_ros.nodes.recorder", output=str(mcap))
+    if other_worker:
+        nodes.start("robot_sim", SIM_MODULES[other_worker], worker_id="robot_w", model="surrogate", min_result_subscribers=1)
+    gen = nodes.start(
+        "generator", "ambiegen_ros.nodes.generator", problem="thermostat", algorithm="ga", evaluations=60,
+        population=20, offspring=20, seed=2, run_id="silent-run", min_subscribers=1, subscriber_wait=20.0,
+        worker_wait=0.3, result_timeout=0.5, max_attempts=2,
+    )
+    assert nodes.wait("generator", 60) == 0, nodes.log("generator")[-3000:]
+    time.sleep(0.3)
+    if other_worker:
+        assert nodes.procs["robot_sim"].poll() is None
+        nodes.stop("robot_sim")
+    assert nodes.stop("recorder") == 0
+    done = _done_line(nodes.log("generator"))
+    assert done["scenarios"] > 0 and done["timeouts"] == done["scenarios"] == done["settled"]
+    run = _read_run(mcap)
+    sids = {s[0] for s in run["scenarios"]}
+    assert len(sids) == done["scenarios"]
+    attempts = sorted((s[0], s[2]) for s in run["scenarios"])
+    assert attempts == [(sid, a) for sid in sorted(sids) for a in (1, 2)]  # offered twice, to anyone
+    assert all(s[1] == "" for s in run["scenarios"])
+    assert sorted(r[0] for r in run["results"]) == sorted(sids)
+    for sid, worker, kind, run_id, detail in run["results"]:
+        assert kind == SIM_TIMEOUT and worker == "generator" and run_id == "silent-run"
+        assert "2 attempt" in detail
+    assert gen.returncode == 0
+
+
+# --- 7: the recorder interrupted ----------------------------------------------------------------------
+def test_sigint_to_recorder_mid_run_leaves_a_valid_mcap(nodes_factory, test_node, tmp_path):
+    domain = 128
+    nodes = nodes_factory(domain)
+    mcap = tmp_path / "sigint.mcap"
+    watcher = test_node("sigint_watch", domain)
+    seen = {"results": 0}
+    watcher.create_subscription(topics.RESULT_TYPE, topics.RESULTS, lambda m: seen.__setitem__("results", seen["results"] + 1), STREAM)
+    recorder = nodes.start("recorder", "ambiegen_ros.nodes.recorder", output=str(mcap), flush_period=5.0)
+    nodes.start("w", "sim_nodes.thermostat_sim", worker_id="w", model="surrogate", min_result_subscribers=2)
+    gen = nodes.start(
+        "generator", "ambiegen_ros.nodes.generator", problem="thermostat", algorithm="ga", mode="in_the_loop",
+        evaluations=50000, population=50, offspring=50, seed=1, run_id="sigint-run", min_subscribers=2, min_workers=1,
+    )
+    assert watcher.spin_until(lambda: seen["results"] >= 40, 60), nodes.log("generator")[-2000:]
+    recorder.send_signal(signal.SIGINT)
+    assert nodes.wait("recorder", 15) == 0
+    assert gen.poll() is None  # the run was still going
+    nodes.stop("generator")
+    nodes.stop("w")
+
+    with open(mcap, "rb") as fh:
+        reader = make_reader(fh)
+        summ = reader.get_summary()
+        assert summ is not None and summ.statistics.message_count > 0  # finalised: summary + footer
+        meta = {m.name: m.metadata for m in reader.iter_metadata()}
+    assert meta["ambiegen_run"]["run_id"] == "sigint-run"
+    run = _read_run(mcap)  # rosbags reads every message
+    assert len(run["config"]) == 1 and len(run["scenarios"]) >= 40
+    assert len(run["results"]) >= 20  # the flush period was 5 s: all of this came from the final close
+    assert sum(c.msgcount for c in run["connections"].values()) == summ.statistics.message_count
+
+
+def test_sigkill_to_recorder_then_recover_keeps_everything_flushed(nodes_factory, test_node, tmp_path):
+    domain = 129
+    nodes = nodes_factory(domain)
+    mcap = tmp_path / "killed.mcap"
+    flush_period = 0.25
+    recorder = nodes.start("recorder", "ambiegen_ros.nodes.recorder", output=str(mcap), flush_period=flush_period)
+    node = test_node("sigkill_publisher", domain)
+    problem = get_problem("thermostat")
+    pub = node.create_publisher(topics.SCENARIO_TYPES["thermostat"], topics.scenarios("thermostat"), STREAM)
+    cfg = node.create_publisher(topics.RUN_CONFIG_TYPE, topics.RUN_CONFIG, LATCHED)
+    assert node.wait_for_subscribers(pub, 1, 20) and node.wait_for_subscribers(cfg, 1, 20)
+    cfg.publish(conversions.run_config_message(node.new_message, node.now_ns(), "kill-rec", {"seed": 77, "problem": "thermostat"}, "test"))
+    X = problem.codec.join(*problem.sample(50, np.random.default_rng(1)))
+    scenarios = [problem.codec.from_row(r) for r in X]
+    sent_at = []
+    start = time.monotonic()
+    i = 0
+    while time.monotonic() - start < 2.0:  # ~400 messages/s for 2 s
+        pub.publish(conversions.scenario_message(node.new_message, node.now_ns(), problem, scenarios[i % 50], ScenarioMeta("kill-rec", i)))
+        sent_at.append(time.monotonic())
+        i += 1
+        node.spin_once(0.0025)
+    killed_at = time.monotonic()
+    os.kill(recorder.pid, signal.SIGKILL)
+    assert recorder.wait(5) == -signal.SIGKILL
+
+    fixed = tmp_path / "fixed.mcap"
+    cli = subprocess.run([sys.executable, "-m", "ambiegen_ros", "recover", str(mcap), "-o", str(fixed)],
+                         cwd=REPO, env=_env(domain), capture_output=True, text=True, timeout=60)
+    assert cli.returncode == 0, cli.stderr
+    report = json.loads(cli.stdout)
+    assert report["complete"] is False and report["metadata"] >= 2
+    run = _read_run(fixed)
+    ids = [s[0] for s in run["scenarios"]]
+    assert ids == list(range(len(ids)))  # a prefix, in order, nothing invented
+    # everything received before the last flush survived (flush period + scheduling slack)
+    must_have = sum(1 for t in sent_at if t < killed_at - flush_period - 0.5)
+    assert must_have > 100 and len(ids) >= must_have, (len(ids), must_have, len(sent_at))
+    assert report["messages"] == len(ids) + len(run["config"]) and len(run["config"]) == 1
+    with open(fixed, "rb") as fh:
+        reader = make_reader(fh)
+        summ = reader.get_summary()
+        meta = {m.name: m.metadata for m in reader.iter_metadata()}
+        hashes = {c.topic: c.metadata.get("topic_type_hash") for c in summ.channels.values()}
+    assert meta["ambiegen_run"]["seed"] == "77"
+    assert hashes[topics.scenarios("thermostat")] == get_registry().type_hash(topics.SCENARIO_TYPES["thermostat"])
