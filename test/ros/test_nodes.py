@@ -263,6 +263,34 @@ def test_surrogate_campaign_end_to_end(campaigns, name):
     assert f"MCAP: {summary['mcap']}" in output and Path(summary["mcap"]).parent == out
 
 
+FULL_MODEL_OBJECTIVES = {"thermostat": "thermostat_rmse", "robot": "robot_time", "vehicle": "vehicle_max_oob"}
+
+
+@pytest.mark.parametrize("name", ["thermostat", "robot", "vehicle"])
+def test_campaign_suites_run_on_the_full_models_and_stream_timelines(campaigns, name):
+    """The suite is executed by the full-model simulators (their objective, their failure kinds),
+    and each execution is streamed as standard messages (Odometry / Temperature) into the log."""
+    from ambiegen_ros.ros.runlog import iter_messages
+    from ambiegen_ros.sims.outcome import FAILURE_KINDS
+
+    _, summary, _, _ = campaigns[name]
+    problem = CAMPAIGNS[name][1]
+    results, samples = [], 0
+    for topic, typename, _, msg in iter_messages(summary["mcap"], {topics.RESULTS, topics.timeline(problem)}):
+        if topic == topics.RESULTS:
+            results.append(msg)
+        else:
+            samples += 1
+            assert typename == topics.TIMELINE_TYPES[problem]
+    assert results and samples >= len(results)
+    executed = [r for r in results if r.failure_kind != FAILURE_KINDS["invalid_scenario"]]
+    assert executed and all(list(r.objective_names) == [FULL_MODEL_OBJECTIVES[problem]] for r in executed)
+    allowed = {"thermostat": {"none", "requirement"}, "robot": {"none", "collision", "stall", "loiter", "timeout"},
+               "vehicle": {"none", "out_of_lane", "stall", "timeout"}}[problem]
+    assert {k for k in summary["outcomes"] if k != "invalid_scenario"} <= allowed
+    assert summary["failures"] == sum(r.failed for r in results)
+
+
 def test_in_the_loop_campaign_end_to_end(campaigns):
     code, summary, out, output = campaigns["in_the_loop"]
     assert code == 0, output[-3000:]
