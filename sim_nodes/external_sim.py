@@ -33,15 +33,15 @@ from typing import Any
 
 import numpy as np
 
-from ambiegen_ros.core.attributes import ScenarioError
 from ambiegen_ros.core.config import ConfigError, load_config_file
 from ambiegen_ros.problems import get_problem
 from ambiegen_ros.ros import conversions
 from ambiegen_ros.ros.qos import DEFAULT, LATCHED, STREAM, Qos
-from ambiegen_ros.ros.transport import TransportError, create_node
+from ambiegen_ros.ros.transport import create_node
 from ambiegen_ros.sims import car, robot
 from ambiegen_ros.sims.full_model import SIMULATORS
 from ambiegen_ros.sims.room import RoomSimConfig
+from ambiegen_ros.nodes import run_node
 
 PROBLEMS = ("robot", "vehicle", "thermostat")
 
@@ -331,16 +331,7 @@ class ExternalSim:
 
 
 def main(argv: list[str] | None = None) -> int:
-    try:
-        sim = ExternalSim(argv)
-    except (ConfigError, ScenarioError, ValueError, TransportError) as exc:
-        print(f"external_sim: error: {exc}", file=sys.stderr)
-        return 2
-    try:
-        sim.node.spin()
-    finally:
-        sim.node.shutdown()
-    return 0
+    return run_node("external_sim", lambda: ExternalSim(argv))
 
 
 if __name__ == "__main__":

@@ -48,10 +48,11 @@ from ambiegen_ros.core.config import ConfigError, load_config_file
 from ambiegen_ros.problems import get_problem
 from ambiegen_ros.ros import conversions, topics
 from ambiegen_ros.ros.qos import DEFAULT, LATCHED, STREAM, Qos
-from ambiegen_ros.ros.transport import TransportError, create_node
+from ambiegen_ros.ros.transport import create_node
 from ambiegen_ros.sims import Outcome
 from ambiegen_ros.sims.full_model import FullModelExecutor, sim_config
 from ambiegen_ros.sims.oracles import CarJudge, RobotJudge, ThermostatJudge
+from ambiegen_ros.nodes import run_node
 
 ORACLE_FIELDS = {
     "robot": ("radius", "goal_tolerance", "stall_radius", "stall_time", "timeout", "clearance_cells"),
@@ -470,16 +471,7 @@ class SutAdapter:
 
 
 def main(argv: list[str] | None = None) -> int:
-    try:
-        adapter = SutAdapter(argv)
-    except (ConfigError, ScenarioError, ValueError, TransportError) as exc:
-        print(f"sut_adapter: error: {exc}", file=sys.stderr)
-        return 2
-    try:
-        adapter.node.spin()
-    finally:
-        adapter.node.shutdown()
-    return 0
+    return run_node("sut_adapter", lambda: SutAdapter(argv))
 
 
 if __name__ == "__main__":

@@ -24,7 +24,6 @@ scenarios run one by one and each result is published as soon as it exists.
 from __future__ import annotations
 
 import os
-import sys
 import threading
 import time
 from collections import deque
@@ -37,6 +36,7 @@ from ambiegen_ros.ros import conversions, topics
 from ambiegen_ros.ros.qos import DEFAULT, STREAM
 from ambiegen_ros.ros.transport import create_node
 from ambiegen_ros.sims import Outcome, SurrogateExecutor, full_model_executor
+from ambiegen_ros.nodes import run_node
 
 MODELS = ("full", "surrogate")
 
@@ -178,14 +178,4 @@ class SimWorker:
 
 
 def run_worker(problem_name: str, argv: list[str] | None = None) -> int:
-    try:
-        worker = SimWorker(problem_name, argv)
-    except (ConfigError, ScenarioError, ValueError) as exc:
-        print(f"{problem_name}_sim: error: {exc}", file=sys.stderr)
-        return 2
-    try:
-        worker.node.spin()
-    finally:
-        worker.stop()
-        worker.node.shutdown()
-    return 0
+    return run_node(f"{problem_name}_sim", lambda: SimWorker(problem_name, argv), SimWorker.stop)

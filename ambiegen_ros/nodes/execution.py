@@ -47,10 +47,14 @@ class RemoteExecution:
         self.failures = 0
         self.timeouts = 0
         self.errors = 0
+        self.invalid = 0
 
     def add(self, scenario: Any, meta: ScenarioMeta) -> None:
         self.scenarios[meta.scenario_id] = (scenario, meta)
         self.dispatcher.add(meta.scenario_id, meta.scenario_id)
+
+    def next_id(self) -> int:
+        return len(self.scenarios)
 
     def begin(self) -> None:
         self.dispatcher.begin(time.monotonic())
@@ -93,6 +97,7 @@ class RemoteExecution:
         self.failures += outcome.failed
         self.timeouts += outcome.failure_kind == "sim_timeout"
         self.errors += outcome.failure_kind == "error"
+        self.invalid += outcome.failure_kind == "invalid_scenario"
 
     def on_worker(self, msg: Any) -> None:
         if msg.hardware_id == self.problem.name:

@@ -8,29 +8,26 @@ Modes:
   (the paper's "full model" setting); nothing blocks the executor.
 
 Every published scenario ends with a result from a worker or an explicit ``SIM_TIMEOUT`` result
-written by this node (``core.dispatch`` decides re-assignment and giving up).
+written by this node (``execution.RemoteExecution`` over ``core.dispatch``).
 """
 from __future__ import annotations
 
 import sys
 import time
 import uuid
-from typing import Any
-
 import numpy as np
 
 from .. import __version__
-from ..core.attributes import ScenarioError
 from ..core.config import ConfigError, make_run
-from ..core.dispatch import Dispatcher
 from ..core.runs import run_config
 from ..core.search import Search
 from ..problems.base import Evaluation
 from ..ros import conversions, topics
 from ..ros.conversions import ScenarioMeta
-from ..ros.qos import DEFAULT, LATCHED, STREAM
+from ..ros.qos import DEFAULT, LATCHED
 from ..ros.transport import create_node
-from ..sims.outcome import Outcome
+from .execution import RemoteExecution
+from . import run_node
 
 SLICE_S = 0.05  # longest stretch of search work between two executor turns
 
@@ -55,14 +52,6 @@ class Generator:
         self.subscriber_wait = p("subscriber_wait", 10.0, "seconds to wait for subscribers and workers")
         self.exit_when_done = p("exit_when_done", True, "shut down when every scenario is settled")
         status_period = p("status_period", 0.5, "seconds between run status messages")
-        self.dispatcher = Dispatcher(
-            result_timeout=p("result_timeout", 30.0, "seconds to wait for a scenario's result"),
-            worker_timeout=p("worker_timeout", 3.0, "a worker is dead after this many silent seconds"),
-            worker_wait=p("worker_wait", 2.0, "with no worker known after this, offer scenarios to anyone"),
-            max_attempts=p("max_attempts", 2, "attempts per scenario before recording a timeout"),
-            max_in_flight=p("max_in_flight", 8, "scenarios in flight per worker"),
-            start=time.monotonic(),
-        )
         if self.mode not in ("surrogate", "in_the_loop"):
             raise ConfigError(f"mode: unknown {self.mode!r} (allowed: surrogate|in_the_loop)")
         self.problem, self.settings = make_run(
@@ -80,22 +69,10 @@ class Generator:
 
         self.pub_config = n.create_publisher(topics.RUN_CONFIG_TYPE, topics.RUN_CONFIG, LATCHED)
         self.pub_status = n.create_publisher(topics.STATUS_TYPE, topics.STATUS, DEFAULT)
-        self.pub_scenarios = n.create_publisher(
-            topics.SCENARIO_TYPES[self.problem.name], topics.scenarios(self.problem.name), STREAM
-        )
-        self.pub_results = n.create_publisher(topics.RESULT_TYPE, topics.RESULTS, STREAM)
-        n.create_subscription(topics.RESULT_TYPE, topics.RESULTS, self.on_result, STREAM)
-        n.create_subscription(topics.WORKERS_TYPE, topics.WORKERS, self.on_worker, DEFAULT)
+        self.remote = RemoteExecution(n, self.problem, self.run_id)
 
         self.state = "waiting"
         self.waiting_since = time.monotonic()
-        self.scenarios: dict[int, tuple[Any, ScenarioMeta]] = {}
-        self.outcomes: dict[int, Outcome] = {}
-        self.published = 0
-        self.timeouts = 0
-        self.failures = 0
-        self.errors = 0
-        self.invalid = 0
         self.batch: list[int] = []  # in_the_loop: scenario ids of the rows asked last
         self.generation = 0
         self.pub_config.publish(
@@ -111,8 +88,8 @@ class Generator:
     def step(self) -> None:
         now = time.monotonic()
         if self.state == "waiting":
-            subscribers = self.pub_scenarios.subscription_count()
-            workers = len(self.dispatcher.alive(now))
+            subscribers = self.remote.pub_scenarios.subscription_count()
+            workers = len(self.remote.dispatcher.alive(now))
             matched = subscribers >= self.min_subscribers and workers >= self.min_workers
             if matched or now - self.waiting_since > self.subscriber_wait:
                 if not matched:
@@ -123,7 +100,7 @@ class Generator:
                 if self.mode == "surrogate":
                     self.state = "searching"
                 else:
-                    self.dispatcher.begin(now)
+                    self.remote.begin()
                     self.state = "executing"
         elif self.state == "searching":
             deadline = now + SLICE_S
@@ -135,10 +112,10 @@ class Generator:
             if self.mode == "in_the_loop" and not self.batch and not self.ask_batch():
                 self.finish()
                 return
-            self.dispatch(now)
+            self.remote.tick()
             if self.mode == "in_the_loop":
                 self.tell_if_complete()
-            elif self.dispatcher.done():
+            elif self.remote.done():
                 self.finish()
 
     def start_suite(self) -> None:
@@ -150,18 +127,11 @@ class Generator:
         for entry in result.suite:
             scenario = self.problem.parse(entry["scenario"])
             meta = ScenarioMeta(
-                self.run_id, self.published_id(), 0, self.settings.seed, entry["f1"], entry["f2"], entry["valid"], entry["reason"] or ""
+                self.run_id, self.remote.next_id(), 0, self.settings.seed, entry["f1"], entry["f2"], entry["valid"], entry["reason"] or ""
             )
-            self.add(scenario, meta)
-        self.dispatcher.begin(time.monotonic())
+            self.remote.add(scenario, meta)
+        self.remote.begin()
         self.state = "executing"
-
-    def published_id(self) -> int:
-        return len(self.scenarios)
-
-    def add(self, scenario: Any, meta: ScenarioMeta) -> None:
-        self.scenarios[meta.scenario_id] = (scenario, meta)
-        self.dispatcher.add(meta.scenario_id, meta.scenario_id)
 
     def ask_batch(self) -> bool:
         X = self.search.ask()
@@ -172,17 +142,17 @@ class Generator:
         self.batch = []
         for i, row in enumerate(X):
             meta = ScenarioMeta(
-                self.run_id, self.published_id(), self.generation, self.settings.seed,
+                self.run_id, self.remote.next_id(), self.generation, self.settings.seed,
                 float(surrogate.f1[i]), float("nan"), bool(surrogate.valid[i]), surrogate.reasons[i] or "",
             )
-            self.add(self.problem.codec.from_row(row), meta)
+            self.remote.add(self.problem.codec.from_row(row), meta)
             self.batch.append(meta.scenario_id)
         return True
 
     def tell_if_complete(self) -> None:
-        if any(i not in self.outcomes for i in self.batch):
+        if any(i not in self.remote.outcomes for i in self.batch):
             return
-        outcomes = [self.outcomes[i] for i in self.batch]
+        outcomes = [self.remote.outcomes[i] for i in self.batch]
         usable = np.array([o.failure_kind not in ("invalid_scenario", "error", "sim_timeout") for o in outcomes])
         f1 = np.array([o.f1 if ok else 0.0 for o, ok in zip(outcomes, usable)])
         reasons = [None if ok else f"{o.failure_kind}: {o.detail}" for o, ok in zip(outcomes, usable)]
@@ -190,31 +160,13 @@ class Generator:
         self.search.tell(Evaluation(f1, usable, reasons, metrics))
         self.batch = []
 
-    def dispatch(self, now: float) -> None:
-        sent, given_up = self.dispatcher.tick(now)
-        make, stamp = self.node.new_message, self.node.now_ns()
-        for assignment in sent:
-            scenario, meta = self.scenarios[assignment.scenario_id]
-            meta.worker, meta.attempt = assignment.worker, assignment.attempt
-            self.pub_scenarios.publish(conversions.scenario_message(make, stamp, self.problem, scenario, meta))
-            self.published += assignment.attempt == 1
-        for ticket in given_up:
-            outcome = Outcome.rejected(
-                f"no result after {ticket.attempts} attempt(s) (workers tried: {', '.join(ticket.tried) or 'any'})",
-                kind="sim_timeout",
-            )
-            self.outcomes[ticket.scenario_id] = outcome
-            self.timeouts += 1
-            self.pub_results.publish(
-                conversions.result_message(make, stamp, self.run_id, ticket.scenario_id, self.problem.name, self.node.name, outcome)
-            )
-
     def finish(self) -> None:
         self.state = "done"
         self.publish_status()
+        r = self.remote
         self.node.logger.info(
-            f"run {self.run_id} done: {self.published} scenarios, {len(self.outcomes)} settled, "
-            f"{self.failures} failures, {self.timeouts} timeouts, {self.errors} errors, {self.invalid} invalid"
+            f"run {self.run_id} done: {r.published} scenarios, {len(r.outcomes)} settled, "
+            f"{r.failures} failures, {r.timeouts} timeouts, {r.errors} errors, {r.invalid} invalid"
         )
         if self.exit_when_done:
             # let reliable writers deliver the last samples before the process ends
@@ -222,25 +174,6 @@ class Generator:
             while time.monotonic() < deadline and self.node.ok():
                 self.node.spin_once(0.05)
             self.node.shutdown()
-
-    # --- callbacks ---------------------------------------------------------------------------------
-    def on_result(self, msg: Any) -> None:
-        if msg.run_id != self.run_id or msg.worker == self.node.name:
-            return
-        if not self.dispatcher.result(int(msg.scenario_id), msg.worker):
-            return
-        try:
-            outcome = conversions.outcome_from_message(msg)
-        except ScenarioError as exc:
-            outcome = Outcome.rejected(f"unreadable result: {exc}", kind="error")
-        self.outcomes[int(msg.scenario_id)] = outcome
-        self.failures += outcome.failed
-        self.errors += outcome.failure_kind == "error"
-        self.invalid += outcome.failure_kind == "invalid_scenario"
-
-    def on_worker(self, msg: Any) -> None:
-        if msg.hardware_id == self.problem.name:
-            self.dispatcher.heartbeat(msg.name, time.monotonic())
 
     def publish_status(self) -> None:
         s = self.settings
@@ -260,8 +193,8 @@ class Generator:
                 budget_seconds_left=left,
                 best_f1=float(self.search.best_f1),
                 front_size=int(history["front_size"]),
-                scenarios_published=int(self.published),
-                results_received=int(len(self.outcomes)),
+                scenarios_published=int(self.remote.published),
+                results_received=int(len(self.remote.outcomes)),
                 state=self.state,
                 detail="",
             )
@@ -269,16 +202,7 @@ class Generator:
 
 
 def main(argv: list[str] | None = None) -> int:
-    try:
-        generator = Generator(argv)
-    except (ConfigError, ScenarioError, ValueError) as exc:
-        print(f"generator: error: {exc}", file=sys.stderr)
-        return 2
-    try:
-        generator.node.spin()
-    finally:
-        generator.node.shutdown()
-    return 0 if generator.state == "done" else 1
+    return run_node("generator", lambda: Generator(argv), lambda g: 0 if g.state == "done" else 1)
 
 
 if __name__ == "__main__":

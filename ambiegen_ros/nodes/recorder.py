@@ -16,7 +16,6 @@ import json
 import sys
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any
 
 from .. import __version__
 from ..ros import topics
@@ -24,6 +23,7 @@ from ..ros.mcap_log import McapLog
 from ..ros.qos import DEFAULT, Qos
 from ..ros.transport import create_node
 from ..ros.types import get_registry
+from . import run_node
 
 
 class Recorder:
@@ -100,17 +100,7 @@ class Recorder:
 
 
 def main(argv: list[str] | None = None) -> int:
-    try:
-        recorder = Recorder(argv)
-    except (ValueError, OSError) as exc:
-        print(f"recorder: error: {exc}", file=sys.stderr)
-        return 2
-    try:
-        recorder.node.spin()
-    finally:
-        recorder.close()
-        recorder.node.shutdown()
-    return 0
+    return run_node("recorder", lambda: Recorder(argv), Recorder.close)
 
 
 if __name__ == "__main__":

@@ -11,7 +11,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 from typing import Any
 
 import numpy as np
@@ -96,21 +95,9 @@ def register_cli(sub) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Stand-alone entry with the same exit codes as ``ambiegen`` (for tests and scripts)."""
-    from ..cli import EXIT_BAD_INPUT, BadInput
-    from ..core.attributes import ScenarioError
-    from ..core.config import ConfigError
+    from ..cli import main as ambiegen_main
 
-    parser = argparse.ArgumentParser(prog="ambiegen")
-    register_cli(parser.add_subparsers(dest="command"))
-    args = parser.parse_args(argv)
-    if not getattr(args, "func", None):
-        parser.print_help()
-        return EXIT_BAD_INPUT
-    try:
-        return int(args.func(args) or 0)
-    except (BadInput, ScenarioError, ConfigError) as exc:
-        print(f"ambiegen {args.command}: error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+    return ambiegen_main(argv)
 
 
 __all__ = ["cmd_execute", "main", "parse_options", "register_cli", "result_json"]
