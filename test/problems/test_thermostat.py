@@ -263,3 +263,17 @@ def test_plot_renders_png(problem, tmp_path):
     import matplotlib.pyplot as plt
 
     plt.close(fig)
+
+
+def test_small_batches_use_the_scalar_path_with_identical_results():
+    """evaluate() switches to the plain simulator for a few schedules; F1 must not depend on it."""
+    from ambiegen_ros.problems import thermostat as module
+
+    problem = ThermostatProblem()
+    G, lengths = problem.sample(40, np.random.default_rng(11))
+    big = problem.evaluate(G, lengths)  # 40 > SCALAR_BATCH: vectorised
+    assert len(G) > module.SCALAR_BATCH
+    for i in range(0, 40, 5):
+        small = problem.evaluate(G[i : i + 5], lengths[i : i + 5])  # scalar path
+        np.testing.assert_allclose(small.f1, big.f1[i : i + 5], atol=1e-9)
+        np.testing.assert_allclose(small.metrics["max_error"], big.metrics["max_error"][i : i + 5], atol=1e-9)
