@@ -287,7 +287,7 @@ def cmd_campaign(args) -> int:
     summary = campaign.run(progress)
     if tty:
         sys.stderr.write("\n")
-    print(json.dumps({k: v for k, v in summary.items() if k != "outcomes"}, indent=2))
+    print(json.dumps(summary, indent=2))
     print(f"MCAP: {summary.get('mcap', campaign.mcap)}")
     ok = summary.get("exit_codes", {}).get("generator") == 0 and not summary.get("unresolved") and "log_error" not in summary
     return 0 if ok else 1

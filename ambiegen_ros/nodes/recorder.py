@@ -26,6 +26,9 @@ from ..ros.types import get_registry
 from . import run_node
 
 
+READER_DEPTH = 5000
+
+
 class Recorder:
     def __init__(self, argv: list[str] | None = None, node=None):
         self.node = node or create_node("recorder", argv=argv)
@@ -67,7 +70,9 @@ class Recorder:
             if is_config:
                 self.store_run_config(data)
 
-        self.node.create_subscription(typename, topic, on_bytes, qos, raw=True)
+        # the reader's queue is local (it does not affect matching): keep it deep so bursts are not lost
+        reader_qos = Qos(reliable=qos.reliable, transient_local=qos.transient_local, depth=max(qos.depth, READER_DEPTH))
+        self.node.create_subscription(typename, topic, on_bytes, reader_qos, raw=True)
 
     def store_run_config(self, data: bytes) -> None:
         msg = self.registry.deserialize(data, topics.RUN_CONFIG_TYPE)
