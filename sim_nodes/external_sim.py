@@ -331,7 +331,7 @@ class ExternalSim:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run_node("external_sim", lambda: ExternalSim(argv))
+    return run_node("external_sim", lambda: ExternalSim(argv), doc=__doc__)
 
 
 if __name__ == "__main__":

@@ -471,7 +471,7 @@ class SutAdapter:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run_node("sut_adapter", lambda: SutAdapter(argv))
+    return run_node("sut_adapter", lambda: SutAdapter(argv), doc=__doc__)
 
 
 if __name__ == "__main__":

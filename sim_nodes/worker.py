@@ -178,4 +178,4 @@ class SimWorker:
 
 
 def run_worker(problem_name: str, argv: list[str] | None = None) -> int:
-    return run_node(f"{problem_name}_sim", lambda: SimWorker(problem_name, argv), SimWorker.stop)
+    return run_node(f"{problem_name}_sim", lambda: SimWorker(problem_name, argv), SimWorker.stop, doc=__doc__)

@@ -127,3 +127,11 @@ def test_config_file_sets_problem_numbers(tmp_path):
     bad = write(tmp_path, "bad.yaml", "problem: robot\nproblem_config:\n  gravity: 9.8\n")
     out = ambiegen("search", "--config", str(bad), "--out", str(tmp_path / "r2"))
     assert out.returncode == 2 and "gravity" in out.stderr
+
+
+@pytest.mark.parametrize("module", ["ambiegen_ros.nodes.generator", "ambiegen_ros.nodes.recorder",
+                                    "ambiegen_ros.nodes.replay", "sim_nodes.car_sim", "sim_nodes.sut_adapter"])
+def test_every_node_answers_help_without_starting(module):
+    out = subprocess.run([sys.executable, "-m", module, "--help"], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0 and out.stdout.startswith("usage:")
+    assert "Parameters" in out.stdout or "parameters" in out.stdout or "-p " in out.stdout

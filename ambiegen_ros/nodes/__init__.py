@@ -5,13 +5,26 @@ import sys
 from typing import Any, Callable
 
 
-def run_node(label: str, make: Callable[[], Any], finish: Callable[[Any], int | None] | None = None) -> int:
+def wants_help(argv: list[str] | None = None) -> bool:
+    """``-h``/``--help`` before any ``--ros-args`` section."""
+    args = sys.argv[1:] if argv is None else argv
+    head = args[: args.index("--ros-args")] if "--ros-args" in args else args
+    return any(a in ("-h", "--help") for a in head)
+
+
+def run_node(
+    label: str, make: Callable[[], Any], finish: Callable[[Any], int | None] | None = None, doc: str | None = None
+) -> int:
     """The shared ``main()`` of every node: build it, spin until SIGINT/SIGTERM or done, clean up.
 
     ``make`` returns an object with a ``node``; a bad parameter or config exits with status 2 and
     one line. ``finish`` runs before the node shuts down (close files, stop threads) and may
     return the exit code.
     """
+    if doc and wants_help():
+        print(f"usage: {label} [--ros-args -p NAME:=VALUE ... | --params-file FILE.yaml]\n")
+        print(doc.strip())
+        return 0
     from ..core.attributes import ScenarioError
     from ..core.config import ConfigError
     from ..ros.transport import TransportError

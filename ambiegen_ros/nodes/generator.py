@@ -9,6 +9,14 @@ Modes:
 
 Every published scenario ends with a result from a worker or an explicit ``SIM_TIMEOUT`` result
 written by this node (``execution.RemoteExecution`` over ``core.dispatch``).
+
+Parameters: problem (thermostat | robot | vehicle), algorithm (ga | nsga2 | random), evaluations
+(0 = the paper's budget), time_budget (s, 0 = none), population, offspring (0 = the paper's), seed
+(-1 = drawn and recorded), config_file (run config YAML), mode (surrogate | in_the_loop), run_id,
+min_subscribers, min_workers, subscriber_wait (s), exit_when_done, status_period (s),
+result_timeout (s), worker_timeout (s), worker_wait (s), max_attempts, max_in_flight.
+Topics: publishes /ambiegen/run_config (latched), /ambiegen/status, /ambiegen/<problem>/scenarios
+and SIM_TIMEOUT records on /ambiegen/results; subscribes /ambiegen/results and /ambiegen/workers.
 """
 from __future__ import annotations
 
@@ -202,7 +210,7 @@ class Generator:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run_node("generator", lambda: Generator(argv), lambda g: 0 if g.state == "done" else 1)
+    return run_node("generator", lambda: Generator(argv), lambda g: 0 if g.state == "done" else 1, doc=__doc__)
 
 
 if __name__ == "__main__":

@@ -105,7 +105,7 @@ class Recorder:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run_node("recorder", lambda: Recorder(argv), Recorder.close)
+    return run_node("recorder", lambda: Recorder(argv), Recorder.close, doc=__doc__)
 
 
 if __name__ == "__main__":

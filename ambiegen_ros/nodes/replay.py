@@ -164,6 +164,12 @@ class Replay:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from . import wants_help
+
+    if wants_help(argv):
+        print("usage: replay --ros-args -p log:=FILE.mcap [-p mode:=publish|execute] ...\n")
+        print(__doc__.strip())
+        return 0
     try:
         replay = Replay(argv)
     except (ScenarioError, ValueError) as exc:
