@@ -258,6 +258,11 @@ def cmd_campaign(args) -> int:
 
     if args.workers < 1:
         raise BadInput("--workers must be >= 1")
+    if args.domain_id is not None and not 0 <= args.domain_id <= 232:
+        raise BadInput(f"--domain-id {args.domain_id}: allowed 0..232 (ROS 2 on Linux: 0..101)")
+    if args.domain_id is not None and args.domain_id > 101:
+        print(f"warning: --domain-id {args.domain_id} > 101 maps to UDP ports in Linux's ephemeral range; "
+              "participants may fail to bind", file=sys.stderr)
     spec = CampaignSpec(
         problem=args.problem,
         algorithm=args.algorithm,

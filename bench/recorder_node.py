@@ -6,7 +6,7 @@ or as fast as the publisher can go), stops the recorder with SIGINT and counts t
 reader. Rate = recorded / (last - first log time in the file). Target (issue 3): >= 20,000/s for
 1 KB with no loss.
 
-Usage: python bench/recorder_node.py [--messages 50000] [--domain 211]
+Usage: python bench/recorder_node.py [--messages 50000] [--domain 81]
 """
 from __future__ import annotations
 
@@ -76,7 +76,7 @@ def run(messages: int, domain: int, payload: int, rate: float | None) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--messages", type=int, default=50_000)
-    parser.add_argument("--domain", type=int, default=211)
+    parser.add_argument("--domain", type=int, default=81)
     parser.add_argument("--no-write", action="store_true")
     args = parser.parse_args()
     figures = {"how": __doc__.strip().splitlines()[0], "target_msgs_per_s_1KB": 20_000, "cases": []}

@@ -5,7 +5,7 @@ that run's verdict (every kind: success, collision, stall, loiter, timeout, out 
 requirement), in any batching; a series cut short is an error, never a pass; the live room of the
 external simulator is ``room.heat`` step by step.
 
-Process part (real DDS, ROS_DOMAIN_ID 140..149): ``external_sim`` (our simulators speaking only
+Process part (real DDS, ROS_DOMAIN_ID 50..59; ids above 101 fall into Linux's ephemeral port range): ``external_sim`` (our simulators speaking only
 standard topics) + ``sut_adapter`` + a driver publishing crafted scenarios, or the generator
 running a small surrogate campaign; the adapter's verdicts must equal the in-process full-model
 verdicts of the same scenarios. An adapter with nobody answering must return an error result.
@@ -322,7 +322,7 @@ def start_pair(procs: Procs, problem: str, scale: float, **adapter) -> None:
 @pytestmark_dds
 def test_robot_runs_through_the_adapter_as_in_process(graph, problems):
     p = problems["robot"]
-    procs, node = graph(141)
+    procs, node = graph(51)
     start_pair(procs, "robot", 150.0, run_invalid=True)
     driver = Driver(node, p)
     driver.wait_matched()
@@ -348,7 +348,7 @@ def test_robot_runs_through_the_adapter_as_in_process(graph, problems):
 @pytestmark_dds
 def test_vehicle_campaign_through_the_adapter_matches_the_full_model(graph, problems):
     p = problems["vehicle"]
-    procs, node = graph(142)
+    procs, node = graph(52)
     start_pair(procs, "vehicle", 40.0, min_result_subscribers=1)
     driver = Driver(node, p)
     driver.wait_matched()
@@ -382,7 +382,7 @@ def test_vehicle_campaign_through_the_adapter_matches_the_full_model(graph, prob
 @pytestmark_dds
 def test_thermostat_through_the_adapter(graph, problems):
     p = problems["thermostat"]
-    procs, node = graph(143)
+    procs, node = graph(53)
     start_pair(procs, "thermostat", 7200.0)
     driver = Driver(node, p)
     driver.wait_matched()
@@ -403,7 +403,7 @@ def test_thermostat_through_the_adapter(graph, problems):
 @pytestmark_dds
 def test_adapter_without_a_system_under_test_answers_with_an_error(graph, problems):
     p = problems["vehicle"]
-    procs, node = graph(144)
+    procs, node = graph(54)
     procs.start("adapter", "sim_nodes.sut_adapter", problem="vehicle", worker_id="sut", start_timeout=1.0)
     driver = Driver(node, p)
     driver.wait_matched()
@@ -417,7 +417,7 @@ def test_adapter_without_a_system_under_test_answers_with_an_error(graph, proble
 
 
 def test_bad_parameters_exit_with_status_2():
-    env = dict(os.environ, ROS_DOMAIN_ID="149")
+    env = dict(os.environ, ROS_DOMAIN_ID="59")
     env.pop("AMBIEGEN_TRANSPORT", None)
     for module, args in (("sim_nodes.sut_adapter", ["-p", "stamp_clock:=sundial"]),
                          ("sim_nodes.external_sim", ["-p", "problem:=submarine"])):
@@ -430,7 +430,7 @@ def test_bad_parameters_exit_with_status_2():
 def test_a_foreign_robot_stack_with_a_bumper(graph, problems):
     """A hand-written SUT: odometry relative to its spawn pose with zero stamps, and a bumper topic."""
     p = problems["robot"]
-    procs, node = graph(145)
+    procs, node = graph(55)
     procs.start("adapter", "sim_nodes.sut_adapter", problem="robot", worker_id="sut", collision_topic="/bumper",
                 odom_frame="start", stamp_clock="receive", time_scale=1.0, settle_time=0.1)
     driver = Driver(node, p)

@@ -1,6 +1,6 @@
 """The ROS 2 layer end to end: real node processes talking over real DDS (Cyclone from PyPI).
 
-Every multi-process test runs its nodes as subprocesses on its own ROS_DOMAIN_ID (120..139), so
+Every multi-process test runs its nodes as subprocesses on its own ROS_DOMAIN_ID (30..49; ids above 101 fall into Linux's ephemeral port range), so
 tests cannot see each other, and reads the run back from the MCAP log with independent readers
 (rosbags' AnyReader decodes with the schema text stored in the file; the ``mcap`` library reads
 channel metadata and metadata records). Budgets are small; every wait is bounded.
@@ -222,10 +222,10 @@ def test_vehicle_message_carries_raw_and_interpolated_road():
 # --- 1-3: campaigns through the CLI ------------------------------------------------------------------
 CAMPAIGNS = {
     # name: (domain, problem, algorithm, evaluations, extra CLI options)
-    "thermostat": (120, "thermostat", "ga", 300, {"population": 20, "offspring": 20}),
-    "robot": (121, "robot", "nsga2", 200, {"population": 20, "offspring": 20}),
-    "vehicle": (122, "vehicle", "nsga2", 200, {"population": 20, "offspring": 20}),
-    "in_the_loop": (123, "thermostat", "ga", 240, {"population": 30, "offspring": 30, "mode": "in_the_loop", "workers": 2}),
+    "thermostat": (30, "thermostat", "ga", 300, {"population": 20, "offspring": 20}),
+    "robot": (31, "robot", "nsga2", 200, {"population": 20, "offspring": 20}),
+    "vehicle": (32, "vehicle", "nsga2", 200, {"population": 20, "offspring": 20}),
+    "in_the_loop": (33, "thermostat", "ga", 240, {"population": 30, "offspring": 30, "mode": "in_the_loop", "workers": 2}),
 }
 
 
@@ -361,7 +361,7 @@ def test_two_workers_share_without_executing_twice(campaigns):
 
 # --- 4: a worker killed mid-run ---------------------------------------------------------------------
 def test_killed_worker_loses_nothing(nodes_factory, test_node, tmp_path):
-    domain = 124
+    domain = 34
     nodes = nodes_factory(domain)
     mcap = tmp_path / "kill.mcap"
     watcher = test_node("kill_watch", domain)
@@ -419,7 +419,7 @@ def test_killed_worker_loses_nothing(nodes_factory, test_node, tmp_path):
 
 # --- 5: malformed scenario messages ------------------------------------------------------------------
 def test_malformed_scenarios_get_invalid_results_and_the_node_goes_on(nodes_factory, test_node):
-    domain = 125
+    domain = 35
     nodes = nodes_factory(domain)
     worker = nodes.start("thermostat_sim", "sim_nodes.thermostat_sim", worker_id="w_bad", model="surrogate", min_result_subscribers=1)
     node = test_node("malformed_test", domain)
@@ -475,7 +475,7 @@ def test_malformed_scenarios_get_invalid_results_and_the_node_goes_on(nodes_fact
 
 
 # --- 6: nobody answers --------------------------------------------------------------------------------
-@pytest.mark.parametrize("domain,other_worker", [(126, None), (127, "robot")], ids=["no_worker", "other_problem_worker"])
+@pytest.mark.parametrize("domain,other_worker", [(36, None), (37, "robot")], ids=["no_worker", "other_problem_worker"])
 def test_unanswered_scenarios_end_as_sim_timeouts(nodes_factory, tmp_path, domain, other_worker):
     nodes = nodes_factory(domain)
     mcap = tmp_path / "timeouts.mcap"
@@ -510,7 +510,7 @@ def test_unanswered_scenarios_end_as_sim_timeouts(nodes_factory, tmp_path, domai
 
 # --- 7: the recorder interrupted ----------------------------------------------------------------------
 def test_sigint_to_recorder_mid_run_leaves_a_valid_mcap(nodes_factory, test_node, tmp_path):
-    domain = 128
+    domain = 38
     nodes = nodes_factory(domain)
     mcap = tmp_path / "sigint.mcap"
     watcher = test_node("sigint_watch", domain)
@@ -542,7 +542,7 @@ def test_sigint_to_recorder_mid_run_leaves_a_valid_mcap(nodes_factory, test_node
 
 
 def test_sigkill_to_recorder_then_recover_keeps_everything_flushed(nodes_factory, test_node, tmp_path):
-    domain = 129
+    domain = 39
     nodes = nodes_factory(domain)
     mcap = tmp_path / "killed.mcap"
     flush_period = 0.25

@@ -1,6 +1,6 @@
 """`ambiegen replay`: re-execute a recorded run and compare, and re-publish it byte for byte.
 
-Real processes over DDS; domains 150-152.
+Real processes over DDS; domains 60-63 (ids above 101 fall into Linux's ephemeral port range).
 """
 from __future__ import annotations
 
@@ -30,17 +30,17 @@ def ambiegen(domain: int, *args: str, timeout: float = 150) -> subprocess.Comple
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("recorded")
-    run = ambiegen(150, "campaign", "--problem", "thermostat", "--algorithm", "ga", "--evaluations", "200",
+    run = ambiegen(60, "campaign", "--problem", "thermostat", "--algorithm", "ga", "--evaluations", "200",
                    "--population", "20", "--offspring", "20", "--seed", "4", "--sim-model", "surrogate",
-                   "--domain-id", "150", "--out", str(out))
+                   "--domain-id", "60", "--out", str(out))
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
     return next(out.glob("*.mcap"))
 
 
 def test_replay_execute_reruns_every_scenario_and_reports_no_change(recorded, tmp_path):
     report_path, new_log = tmp_path / "report.json", tmp_path / "new.mcap"
-    run = ambiegen(151, "replay", str(recorded), "--execute", "--workers", "1", "--sim-model", "surrogate",
-                   "--record", str(new_log), "--report", str(report_path), "--domain-id", "151")
+    run = ambiegen(61, "replay", str(recorded), "--execute", "--workers", "1", "--sim-model", "surrogate",
+                   "--record", str(new_log), "--report", str(report_path), "--domain-id", "61")
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
     report = json.loads(report_path.read_text())
     old = summarize(recorded)
@@ -56,8 +56,8 @@ def test_replay_execute_reruns_every_scenario_and_reports_no_change(recorded, tm
 def test_replay_execute_with_another_model_reports_the_changes(recorded, tmp_path):
     """A 'new SUT version': the full-model thermostat instead of the surrogate."""
     report_path = tmp_path / "report.json"
-    run = ambiegen(152, "replay", str(recorded), "--execute", "--workers", "1", "--sim-model", "full",
-                   "--report", str(report_path), "--domain-id", "152")
+    run = ambiegen(62, "replay", str(recorded), "--execute", "--workers", "1", "--sim-model", "full",
+                   "--report", str(report_path), "--domain-id", "62")
     assert run.returncode == 0, run.stderr[-2000:]
     report = json.loads(report_path.read_text())
     assert report["settled"] == 10
@@ -73,8 +73,8 @@ def test_replay_publish_sends_the_recorded_bytes(recorded):
 
     with open(recorded, "rb") as fh:
         expected = [m.data for _, _, m in make_reader(fh).iter_messages(topics=[topics.scenarios("thermostat")])]
-    env = dict(os.environ, ROS_DOMAIN_ID="153")
-    os.environ["ROS_DOMAIN_ID"] = "153"
+    env = dict(os.environ, ROS_DOMAIN_ID="63")
+    os.environ["ROS_DOMAIN_ID"] = "63"
     node = create_node("replay_listener", argv=[])
     received: list[bytes] = []
     node.create_subscription(topics.SCENARIO_TYPES["thermostat"], topics.scenarios("thermostat"),

@@ -1,5 +1,5 @@
 """The transport seam: parameter parsing, naming, QoS tables, backend choice, and the DDS backend
-between real processes on real DDS (each test its own ROS_DOMAIN_ID in 100..119).
+between real processes on real DDS (each test its own ROS_DOMAIN_ID in 10..29; ids above 101 fall into Linux's ephemeral port range).
 
 This file is also the helper program for its multi-process tests:
 ``python test_transport.py ROLE ARGS...`` runs one node role (see ``_ROLES``).
@@ -553,7 +553,7 @@ def test_node_parameters_from_argv_and_overrides(dds_env, tmp_path):
     f = tmp_path / "p.yaml"
     f.write_text("/**:\n  ros__parameters:\n    pop: 30\n    name: from_file\n")
     argv = ["prog", "--ros-args", "--params-file", str(f), "-p", "rate:=2", "-r", "__ns:=/demo"]
-    node = dds_env(100, "gen", argv=argv, parameter_overrides={"seed": 7})
+    node = dds_env(10, "gen", argv=argv, parameter_overrides={"seed": 7})
     assert node.fully_qualified_name == "/demo/gen"
     assert node.declare_parameter("pop", 10) == 30
     assert node.declare_parameter("rate", 1.0) == 2.0
@@ -569,7 +569,7 @@ def test_node_parameters_from_argv_and_overrides(dds_env, tmp_path):
 
 
 def test_timers_spin_once_and_shutdown(dds_env):
-    node = dds_env(101)
+    node = dds_env(11)
     ticks, other = [], []
     main = threading.get_ident()
     t = node.create_timer(0.02, lambda: ticks.append((time.monotonic(), threading.get_ident() == main)))
@@ -594,7 +594,7 @@ def test_timers_spin_once_and_shutdown(dds_env):
 
 
 def test_in_process_pubsub_raw_and_bad_payload(dds_env):
-    node = dds_env(102)
+    node = dds_env(12)
     got, raw = [], []
     pub = node.create_publisher(STRING, "/t", DEFAULT)
     assert not node.wait_for_subscribers(pub, 1, 0.2)  # nobody there yet
@@ -616,7 +616,7 @@ def test_in_process_pubsub_raw_and_bad_payload(dds_env):
 
 def test_every_known_message_type_round_trips(dds_env):
     """Each type's mirrored DDS struct must accept types.py's CDR (the C layer validates it)."""
-    node = dds_env(106)
+    node = dds_env(16)
     reg = node._registry
     names = [t for t in reg.store.fielddefs if "/msg/" in t]
     assert len(names) > 150 and all(t in names for t in reg.own_types)
@@ -637,9 +637,9 @@ def test_every_known_message_type_round_trips(dds_env):
 
 def test_two_processes_exchange_typed_and_raw_bytes_exactly(tmp_path):
     from ambiegen_ros.ros import types
-    sub = _spawn("sub", 103, str(tmp_path / "sub.json"))
+    sub = _spawn("sub", 13, str(tmp_path / "sub.json"))
     _wait_ready(sub)
-    pub = _spawn("pub", 103, str(tmp_path / "pub.json"))
+    pub = _spawn("pub", 13, str(tmp_path / "pub.json"))
     _finish(sub)
     _finish(pub)
     report = json.loads((tmp_path / "pub.json").read_text())
@@ -656,15 +656,15 @@ def test_two_processes_exchange_typed_and_raw_bytes_exactly(tmp_path):
 def test_latched_late_joiner_discovery_and_sigint(tmp_path, dds_env):
     from ambiegen_ros.ros import types
     reg = types.get_registry()
-    latched = _spawn("latched", 104, str(tmp_path / "final.json"))
+    latched = _spawn("latched", 14, str(tmp_path / "final.json"))
     try:
         _wait_ready(latched)
-        late = _spawn("late", 104, str(tmp_path / "late.json"))
+        late = _spawn("late", 14, str(tmp_path / "late.json"))
         _finish(late)
         got = json.loads((tmp_path / "late.json").read_text())
         assert got == [reg.serialize(make_grid(reg, 2), GRID).hex()]  # only the last, depth 1
 
-        node = dds_env(104, "observer")
+        node = dds_env(14, "observer")
         node.spin_until(lambda: ("/demo/latched_map", [GRID]) in node.topic_names_and_types(), 5.0)
         assert ("/demo/latched_map", [GRID]) in node.topic_names_and_types()
         info = []
@@ -687,7 +687,7 @@ def test_latched_late_joiner_discovery_and_sigint(tmp_path, dds_env):
 
 
 def test_sigterm_ends_spin_cleanly(tmp_path):
-    proc = _spawn("latched", 105, str(tmp_path / "final.json"))
+    proc = _spawn("latched", 15, str(tmp_path / "final.json"))
     try:
         _wait_ready(proc)
         t0 = time.monotonic()
