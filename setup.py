@@ -36,7 +36,7 @@ setup(
         "cyclonedds==11.0.1",
         "numba==0.68.1",  # the vehicle surrogate's car loop (numpy fallback kept); brings llvmlite  # one exact version for all our processes (wire-level type matching)
     ],
-    extras_require={"test": ["pytest>=8", "hypothesis>=6.100", "mcap-ros2-support==0.6.0"]},
+    extras_require={"test": ["pytest>=8", "hypothesis>=6.100", "mcap-ros2-support==0.6.0", "mypy>=1.10"]},
     zip_safe=True,
     maintainer="AmbieGen-ROS team",
     maintainer_email="ambiegen-ros@example.org",

@@ -717,3 +717,12 @@ def test_rclpy_values_are_adapted_to_generated_setters():
     assert to_rclpy_value(2, "int32") == 2
     assert to_rclpy_value(True, "boolean") is True
     assert to_rclpy_value("x", "string") == "x"
+
+
+def test_rclpy_backend_and_the_seam_type_check():
+    """No rclpy here, so the rclpy backend is checked statically (rclpy itself typed as Any)."""
+    files = ["ambiegen_ros/ros/transport/rclpy_backend.py", "ambiegen_ros/ros/transport/base.py",
+             "ambiegen_ros/ros/transport/params.py", "ambiegen_ros/ros/transport/__init__.py"]
+    out = subprocess.run([sys.executable, "-m", "mypy", "--ignore-missing-imports", "--follow-imports=silent", *files],
+                         cwd=Path(__file__).resolve().parents[2], capture_output=True, text=True, timeout=240)
+    assert out.returncode == 0, out.stdout + out.stderr

@@ -79,10 +79,15 @@ def create_node(name: str, namespace: str = "", argv: Sequence[str] | None = Non
     ``parameter_overrides`` (tests) win over argv.
     """
     chosen = select_backend(backend)
+    cls: type[Node]
     if chosen == "rclpy":
-        from .rclpy_backend import RclpyNode as cls
+        from .rclpy_backend import RclpyNode
+
+        cls = RclpyNode
     else:
-        from .dds_backend import DdsNode as cls
+        from .dds_backend import DdsNode
+
+        cls = DdsNode
     node = cls(name, namespace=namespace, argv=argv, parameter_overrides=parameter_overrides)
     _nodes.append(node)
     return node
