@@ -34,7 +34,6 @@ callbacks and timers; nothing blocks the executor.
 from __future__ import annotations
 
 import math
-import os
 import sys
 import time
 from collections import deque
@@ -43,16 +42,16 @@ from typing import Any
 
 import numpy as np
 
-from ambiegen_ros.core.attributes import ScenarioError
 from ambiegen_ros.core.config import ConfigError, load_config_file
 from ambiegen_ros.problems import get_problem
-from ambiegen_ros.ros import conversions, topics
+from ambiegen_ros.ros import conversions
 from ambiegen_ros.ros.qos import DEFAULT, LATCHED, STREAM, Qos
 from ambiegen_ros.ros.transport import create_node
 from ambiegen_ros.sims import Outcome
 from ambiegen_ros.sims.full_model import FullModelExecutor, sim_config
 from ambiegen_ros.sims.oracles import CarJudge, RobotJudge, ThermostatJudge
 from ambiegen_ros.nodes import run_node
+from sim_nodes.worker import WorkerEndpoint
 
 ORACLE_FIELDS = {
     "robot": ("radius", "goal_tolerance", "stall_radius", "stall_time", "timeout", "clearance_cells"),
@@ -119,10 +118,7 @@ class SutAdapter:
         self.problem_name = p("problem", "robot", "robot | vehicle | thermostat")
         if self.problem_name not in ORACLE_FIELDS:
             raise ConfigError(f"problem: unknown {self.problem_name!r} (allowed: {'|'.join(ORACLE_FIELDS)})")
-        self.worker_id = p("worker_id", f"{n.name}_{os.getpid()}", "unique id of this worker")
         config_file = p("config_file", "", "YAML with problem_config overrides")
-        heartbeat_period = p("heartbeat_period", 0.5, "seconds between heartbeats")
-        self.min_result_subscribers = p("min_result_subscribers", 1, "result subscribers to wait for before announcing")
         self.frame_id = p("frame_id", "map", "frame of the published map, poses and road")
         self.time_scale = float(p("time_scale", 1.0, "simulated seconds per wall second of the system under test"))
         self.stamp_clock = p("stamp_clock", "sim", "sim | wall | receive: how sample times are read")
@@ -157,10 +153,6 @@ class SutAdapter:
         self.problem = get_problem(self.problem_name, load_config_file(config_file).get("problem_config") or {})
         self.validity = FullModelExecutor(self.problem, config=self.oracle).validity
 
-        self.results = n.create_publisher(topics.RESULT_TYPE, topics.RESULTS, STREAM)
-        self.heartbeats = n.create_publisher(topics.WORKERS_TYPE, topics.WORKERS, DEFAULT)
-        n.create_subscription(topics.SCENARIO_TYPES[self.problem_name], topics.scenarios(self.problem_name),
-                              self.on_scenario, STREAM)
         sample_qos = Qos(reliable=odom_reliable, transient_local=False, depth=STREAM.depth)
         self.topics: dict[str, str] = {}
         if self.problem_name == "robot":
@@ -199,11 +191,12 @@ class SutAdapter:
         self.job: Job | None = None
         self.samples: list[tuple] = []
         self.collision = False
-        self.executed = 0
-        self.ready = False
         self._fast = None
         self._action = None
-        n.create_timer(heartbeat_period, self.heartbeat)
+        self.endpoint = WorkerEndpoint(n, self.problem, self.accept,
+                                       lambda: len(self.queue) + (self.job is not None))
+        self.worker_id = self.endpoint.worker_id
+        self.publish = self.endpoint.publish
         n.create_timer(0.02, self.idle)
         n.logger.info(
             f"{self.worker_id}: {self.problem_name} scenarios -> {', '.join(f'{k}={v}' for k, v in self.topics.items() if v)}"
@@ -211,31 +204,10 @@ class SutAdapter:
         )
 
     # --- worker side ----------------------------------------------------------------------------
-    def heartbeat(self) -> None:
-        if not self.ready:
-            self.ready = self.results.subscription_count() >= self.min_result_subscribers
-            if not self.ready:
-                return
-        in_flight = len(self.queue) + (self.job is not None)
-        self.heartbeats.publish(conversions.heartbeat_message(
-            self.node.new_message, self.worker_id, self.problem_name, in_flight, self.executed))
-
-    def on_scenario(self, msg: Any) -> None:
-        meta = msg.meta
-        if meta.assigned_worker not in ("", self.worker_id):
-            return
-        run_id, sid = meta.run_id, int(meta.scenario_id)
+    def accept(self, run_id: str, sid: int, scenario: Any, msg: Any) -> None:
         if any((j.run_id, j.scenario_id) == (run_id, sid) for j in [self.job, *self.queue] if j is not None):
             return  # a re-sent scenario still waiting here: its one result is coming
-        try:
-            scenario, _ = conversions.scenario_from_message(self.problem, msg)
-            valid, reason = self.validity(scenario)
-        except ScenarioError as exc:
-            self.publish(run_id, sid, Outcome.rejected(str(exc)))
-            return
-        except Exception as exc:  # malformed arrays and the like: still one answer
-            self.publish(run_id, sid, Outcome.rejected(f"{type(exc).__name__}: {exc}", kind="error"))
-            return
+        valid, reason = self.validity(scenario)
         if not valid and not self.run_invalid:
             outcome = Outcome.rejected(f"restriction broken: {reason}")
             outcome.metrics = {"outcome": "invalid", "valid": False, "reason": reason}
@@ -243,13 +215,6 @@ class SutAdapter:
             return
         self.queue.append(Job(run_id, sid, scenario, msg, reason, valid))
 
-    def publish(self, run_id: str, scenario_id: int, outcome: Outcome) -> None:
-        msg = conversions.result_message(self.node.new_message, self.node.now_ns(), run_id, int(scenario_id),
-                                         self.problem_name, self.worker_id, outcome)
-        self.results.publish(msg)
-        self.executed += 1
-
-    # --- one scenario at a time -----------------------------------------------------------------
     def idle(self) -> None:
         if self.job is None and self.queue:
             self.start(self.queue.popleft())
@@ -471,7 +436,7 @@ class SutAdapter:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run_node("sut_adapter", lambda: SutAdapter(argv), doc=__doc__)
+    return run_node("sut_adapter", lambda: SutAdapter(argv), lambda a: a.endpoint.stop(), doc=__doc__)
 
 
 if __name__ == "__main__":

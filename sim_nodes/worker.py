@@ -27,7 +27,7 @@ import os
 import threading
 import time
 from collections import deque
-from typing import Any
+from typing import Any, Callable
 
 from ambiegen_ros.core.attributes import ScenarioError
 from ambiegen_ros.core.config import ConfigError, load_config_file
@@ -41,46 +41,38 @@ from ambiegen_ros.nodes import run_node
 MODELS = ("full", "surrogate")
 
 
-class SimWorker:
-    def __init__(self, problem_name: str, argv: list[str] | None = None, node=None):
-        self.node = node or create_node(f"{problem_name}_sim", argv=argv)
-        n = self.node
+class WorkerEndpoint:
+    """The worker side every executing node shares (sim workers, the SUT adapter).
+
+    Declares ``worker_id``, ``heartbeat_period`` and ``min_result_subscribers``; heartbeats from a
+    thread of its own once enough result subscribers are matched; takes the scenario messages
+    addressed to this worker (or to anyone), answers malformed ones at once (``INVALID_SCENARIO``
+    naming the field, or ``ERROR``) and hands valid ones to ``accept(run_id, scenario_id,
+    scenario, msg)``; publishes results with ``publish``.
+    """
+
+    def __init__(self, node: Any, problem: Any, accept: Callable[[str, int, Any, Any], None],
+                 in_flight: Callable[[], int]):
+        self.node = node
+        self.problem = problem
+        self._accept = accept
+        self._in_flight = in_flight
+        n = node
         self.worker_id = n.declare_parameter("worker_id", f"{n.name}_{os.getpid()}", "unique id of this worker")
-        config_file = n.declare_parameter("config_file", "", "YAML with problem_config overrides")
         period = n.declare_parameter("heartbeat_period", 0.5, "seconds between heartbeats")
         self.min_result_subscribers = n.declare_parameter(
             "min_result_subscribers", 1, "wait for this many result subscribers before announcing"
         )
-        batch_period = n.declare_parameter("batch_period", 0.002, "seconds to collect scenarios into one batch")
-        self.max_batch = max(1, n.declare_parameter("max_batch", 256, "most scenarios executed in one batch"))
-        self.model = n.declare_parameter("model", "full", "full (full-model simulator + oracle) | surrogate")
-        self.seed = n.declare_parameter("seed", 0, "full models: scenario k runs with seed + k")
-        default_period = 180.0 if problem_name == "thermostat" else 0.5
-        self.timeline_period = n.declare_parameter(
-            "timeline_period", default_period, "simulated seconds between streamed samples (0 = none)"
-        )
-        if self.model not in MODELS:
-            raise ConfigError(f"model: unknown {self.model!r} (allowed: {'|'.join(MODELS)})")
-        self.problem = get_problem(problem_name, load_config_file(config_file).get("problem_config") or {})
-        if self.model == "full":
-            self.executor = full_model_executor(self.problem)
-            self.timeline = n.create_publisher(topics.TIMELINE_TYPES[problem_name], topics.timeline(problem_name), STREAM)
-        else:
-            self.executor = SurrogateExecutor(self.problem)
-            self.timeline = None
         self.results = n.create_publisher(topics.RESULT_TYPE, topics.RESULTS, STREAM)
         self.heartbeats = n.create_publisher(topics.WORKERS_TYPE, topics.WORKERS, DEFAULT)
         n.create_subscription(
-            topics.SCENARIO_TYPES[problem_name], topics.scenarios(problem_name), self.on_scenario, STREAM
+            topics.SCENARIO_TYPES[problem.name], topics.scenarios(problem.name), self.on_scenario, STREAM
         )
-        self.pending: deque[tuple[str, int, Any]] = deque()  # (run id, scenario id, validated scenario)
         self.executed = 0
         self.ready = False
-        n.create_timer(batch_period, self.execute_pending)
         self._stop = threading.Event()
         self._beats = threading.Thread(target=self._beat_loop, args=(period,), name="heartbeat", daemon=True)
         self._beats.start()
-        n.logger.info(f"{self.worker_id}: executing {problem_name} scenarios ({self.model} model)")
 
     def heartbeat(self) -> None:
         if not self.ready:
@@ -89,7 +81,7 @@ class SimWorker:
                 return
         make = self.node.new_message
         self.heartbeats.publish(
-            conversions.heartbeat_message(make, self.worker_id, self.problem.name, len(self.pending), self.executed)
+            conversions.heartbeat_message(make, self.worker_id, self.problem.name, self._in_flight(), self.executed)
         )
 
     def _beat_loop(self, period: float) -> None:
@@ -113,13 +105,54 @@ class SimWorker:
         start = time.perf_counter()
         try:
             scenario, _ = conversions.scenario_from_message(self.problem, msg)
+            self._accept(meta.run_id, int(meta.scenario_id), scenario, msg)
         except ScenarioError as exc:
             self.publish(meta.run_id, meta.scenario_id, Outcome.rejected(str(exc)), start)
-            return
         except Exception as exc:  # e.g. arrays of inconsistent shapes: still an answer
             self.publish(meta.run_id, meta.scenario_id, Outcome.rejected(f"{type(exc).__name__}: {exc}", kind="error"), start)
-            return
-        self.pending.append((meta.run_id, int(meta.scenario_id), scenario))
+
+    def publish(self, run_id: str, scenario_id: int, outcome: Outcome, start: float | None = None) -> None:
+        if start is not None:
+            outcome.elapsed_sec = time.perf_counter() - start
+        msg = conversions.result_message(
+            self.node.new_message, self.node.now_ns(), run_id, int(scenario_id), self.problem.name, self.worker_id, outcome
+        )
+        self.results.publish(msg)
+        self.executed += 1
+
+
+class SimWorker:
+    def __init__(self, problem_name: str, argv: list[str] | None = None, node=None):
+        self.node = node or create_node(f"{problem_name}_sim", argv=argv)
+        n = self.node
+        config_file = n.declare_parameter("config_file", "", "YAML with problem_config overrides")
+        batch_period = n.declare_parameter("batch_period", 0.002, "seconds to collect scenarios into one batch")
+        self.max_batch = max(1, n.declare_parameter("max_batch", 256, "most scenarios executed in one batch"))
+        self.model = n.declare_parameter("model", "full", "full (full-model simulator + oracle) | surrogate")
+        self.seed = n.declare_parameter("seed", 0, "full models: scenario k runs with seed + k")
+        default_period = 180.0 if problem_name == "thermostat" else 0.5
+        self.timeline_period = n.declare_parameter(
+            "timeline_period", default_period, "simulated seconds between streamed samples (0 = none)"
+        )
+        if self.model not in MODELS:
+            raise ConfigError(f"model: unknown {self.model!r} (allowed: {'|'.join(MODELS)})")
+        self.problem = get_problem(problem_name, load_config_file(config_file).get("problem_config") or {})
+        if self.model == "full":
+            self.executor = full_model_executor(self.problem)
+            self.timeline = n.create_publisher(topics.TIMELINE_TYPES[problem_name], topics.timeline(problem_name), STREAM)
+        else:
+            self.executor = SurrogateExecutor(self.problem)
+            self.timeline = None
+        self.pending: deque[tuple[str, int, Any]] = deque()  # (run id, scenario id, validated scenario)
+        self.endpoint = WorkerEndpoint(n, self.problem, self.accept, lambda: len(self.pending))
+        self.worker_id = self.endpoint.worker_id
+        self.publish = self.endpoint.publish
+        self.stop = self.endpoint.stop
+        n.create_timer(batch_period, self.execute_pending)
+        n.logger.info(f"{self.worker_id}: executing {problem_name} scenarios ({self.model} model)")
+
+    def accept(self, run_id: str, scenario_id: int, scenario: Any, msg: Any) -> None:
+        self.pending.append((run_id, scenario_id, scenario))
         if len(self.pending) >= self.max_batch:
             self.execute_pending()
 
@@ -158,16 +191,6 @@ class SimWorker:
             self.node.logger.error(f"execution failed: {type(exc).__name__}: {exc}")
             return Outcome.rejected(f"{type(exc).__name__}: {exc}", kind="error")
 
-    def publish(self, run_id: str, scenario_id: int, outcome: Outcome, start: float | None = None) -> None:
-        if start is not None:
-            outcome.elapsed_sec = time.perf_counter() - start
-        msg = conversions.result_message(
-            self.node.new_message, self.node.now_ns(), run_id, int(scenario_id), self.problem.name, self.worker_id, outcome
-        )
-        self.results.publish(msg)
-        self.executed += 1
-
-
     def publish_timeline(self, outcome: Outcome, start_ns: int) -> None:
         if self.timeline is None or not outcome.timeline or self.timeline_period <= 0:
             return
@@ -178,4 +201,4 @@ class SimWorker:
 
 
 def run_worker(problem_name: str, argv: list[str] | None = None) -> int:
-    return run_node(f"{problem_name}_sim", lambda: SimWorker(problem_name, argv), SimWorker.stop, doc=__doc__)
+    return run_node(f"{problem_name}_sim", lambda: SimWorker(problem_name, argv), lambda w: w.stop(), doc=__doc__)
