@@ -189,3 +189,63 @@ def simulate(problem: Any, scenario: Any, config: RoomSimConfig | None = None, s
 
 
 __all__ = ["RoomSimConfig", "heat", "schedule_of", "simulate"]
+
+
+class SteppedRoom:
+    """``sims.room.heat`` advanced one ``dt`` at a time, the set point and room model read at each
+    step (so they can change live); same controller, noise stream and integration."""
+
+    def __init__(self, config: RoomSimConfig, room_models, initial_temperature: float, seed: int = 0):
+        self.cfg = config
+        self.models = np.asarray(room_models, dtype=float)
+        self.rng = np.random.default_rng(seed)
+        self.every = int(round(config.control_period / config.dt))
+        self.pwm_steps = max(1, int(round(config.pwm_period / config.dt)))
+        self.T = float(initial_temperature)
+        self.k = 0
+        self.on = True
+        self.anchor = self.T  # temperature at the last switch
+        self.switches = 0
+        self.integral, self.last_err, self.duty, self.pwm_start = 0.0, None, 1.0, 0
+        self.reading = self.T
+
+    @property
+    def t(self) -> float:
+        return self.k * self.cfg.dt
+
+    def step(self, goal: float, model: int) -> float:
+        """Sense and decide at t_k with ``goal`` and ``model`` in effect, integrate to t_k+1."""
+        cfg, k = self.cfg, self.k
+        noise = self.rng.normal(0.0, cfg.sensor_noise) if cfg.sensor_noise > 0 else 0.0
+        if k % self.every == 0:
+            reading = self.T + noise
+            if cfg.sensor_resolution > 0:
+                reading = round(reading / cfg.sensor_resolution) * cfg.sensor_resolution
+            self.reading = reading
+            if cfg.controller == "onoff":
+                want = self.on
+                if self.on and reading >= goal + cfg.hysteresis:
+                    want = False
+                elif not self.on and reading < goal - cfg.hysteresis:
+                    want = True
+            else:
+                err = goal - reading
+                bound = 1.0 / max(cfg.ki, 1e-12)
+                self.integral = min(max(self.integral + err * cfg.control_period, -bound), bound)
+                deriv = 0.0 if self.last_err is None else (err - self.last_err) / cfg.control_period
+                self.last_err = err
+                if (k - self.pwm_start) % self.pwm_steps == 0 or k == 0:
+                    self.duty = min(max(cfg.kp * err + cfg.ki * self.integral + cfg.kd * deriv, 0.0), 1.0)
+                    self.pwm_start = k
+                want = (k - self.pwm_start) < self.duty * self.pwm_steps
+            if want != self.on:
+                self.on, self.anchor = want, self.T
+                self.switches += 1
+        k_on1, k_on2, k_off1, k_off2 = self.models[int(model) - 1]
+        if self.on:
+            level, rate = self.anchor + k_on1, k_on2 / cfg.model_step
+        else:
+            level, rate = self.anchor - k_off1, k_off2 / cfg.model_step
+        self.T = level + (self.T - level) * math.exp(-rate * cfg.dt)
+        self.k += 1
+        return self.T

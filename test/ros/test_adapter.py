@@ -34,7 +34,7 @@ from ambiegen_ros.ros import conversions  # noqa: E402
 from ambiegen_ros.ros.qos import DEFAULT  # noqa: E402
 from ambiegen_ros.sims import car, oracles, robot, room  # noqa: E402
 from ambiegen_ros.sims.full_model import full_model_executor  # noqa: E402
-from sim_nodes.external_sim import SteppedRoom  # noqa: E402
+from ambiegen_ros.sims.room import SteppedRoom  # noqa: E402
 from sim_nodes.sut_adapter import sample_times, to_map_frame  # noqa: E402
 from test_full_models import GENTLE, HAIRPIN, corridor_map, easy_robot_elements  # noqa: E402
 
