@@ -4,7 +4,7 @@ from __future__ import annotations
 from typing import Any
 
 from ..core.attributes import ScenarioError
-from .base import Budget, Evaluation, Problem
+from .base import DEFAULT_PROFILE, PROFILES, Budget, Evaluation, Problem
 
 
 def _registry() -> dict[str, type[Problem]]:
@@ -30,4 +30,4 @@ def get_problem(name: str, config: Any = None, **overrides: Any) -> Problem:
     return problem_class(name)(config, **overrides)
 
 
-__all__ = ["Budget", "Evaluation", "Problem", "PROBLEM_NAMES", "get_problem", "problem_class"]
+__all__ = ["Budget", "DEFAULT_PROFILE", "Evaluation", "Problem", "PROBLEM_NAMES", "PROFILES", "get_problem", "problem_class"]

@@ -7,6 +7,12 @@ works on whole batches: ``G`` is a ``(P, m_max, n_attr)`` float array of attribu
 
 Every number of a case study is a field of its ``Config`` dataclass, so it can be overridden from a
 YAML file or a ROS parameter and is recorded in each run's ``config.json``.
+
+Fidelity profiles: every Config has a ``profile`` field. ``replication`` (the default) reproduces
+the authors' replication code, which produced the paper's tables (its domains, sampler, validity
+rules and surrogate); ``refined`` keeps the models as the paper's equations and the project spec
+write them. A profile may change the attribute domains and length limits, so a problem instance
+takes them from ``layout()`` rather than from the class.
 """
 from __future__ import annotations
 
@@ -19,6 +25,17 @@ import numpy as np
 
 from ..core.attributes import Attribute, ScenarioError
 from ..core.scenario import GenomeCodec, Scenario
+
+
+PROFILES = ("replication", "refined")
+DEFAULT_PROFILE = "replication"
+
+
+def check_profile(value: Any) -> str:
+    """Validate a Config's ``profile`` field (called from each Config's ``__post_init__``)."""
+    if value not in PROFILES:
+        raise ScenarioError("config.profile", f"unknown profile {value!r}", "|".join(PROFILES))
+    return value
 
 
 @dataclass(frozen=True)
@@ -71,7 +88,18 @@ class Problem(ABC):
         if overrides:
             config = dataclasses.replace(config, **overrides)
         self.config = config
+        self.attributes, self.m_min, self.m_max = self.layout()
         self.codec = GenomeCodec(self.name, self.attributes, self.m_min, self.m_max)
+
+    def layout(self) -> tuple[tuple[Attribute, ...], int, int]:
+        """Attribute domains and length limits of this instance's profile (default: the class's)."""
+        cls = type(self)
+        return cls.attributes, cls.m_min, cls.m_max
+
+    @property
+    def profile(self) -> str:
+        """The fidelity profile of this instance (``replication`` or ``refined``)."""
+        return str(getattr(self.config, "profile", DEFAULT_PROFILE))
 
     # --- configuration ---------------------------------------------------------------------
     @classmethod
