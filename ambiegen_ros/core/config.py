@@ -44,10 +44,13 @@ def load_config_file(path: str | Path | None) -> dict[str, Any]:
     return data
 
 
-def make_run(problem: str | None = None, config_file: str | Path | None = None, **overrides: Any) -> tuple[Problem, SearchSettings]:
+def make_run(
+    problem: str | None = None, config_file: str | Path | None = None, profile: str | None = None, **overrides: Any
+) -> tuple[Problem, SearchSettings]:
     """Build the problem and the resolved settings; ``None`` overrides are ignored.
 
-    A missing seed is drawn here so that it can be recorded with the run.
+    ``profile`` (replication | refined) wins over the file's ``problem_config.profile``. A missing
+    seed is drawn here so that it can be recorded with the run.
     """
     file_cfg = load_config_file(config_file)
     name = problem or file_cfg.get("problem")
@@ -56,6 +59,8 @@ def make_run(problem: str | None = None, config_file: str | Path | None = None, 
     problem_config = file_cfg.get("problem_config") or {}
     if not isinstance(problem_config, dict):
         raise ConfigError("config: problem_config must be a mapping")
+    if profile is not None:
+        problem_config = {**problem_config, "profile": profile}
     try:
         case = get_problem(name, problem_config)
     except TypeError as exc:
