@@ -38,6 +38,7 @@ def run_config(problem: Problem, result_or_settings: Any, extra: dict[str, Any] 
     settings = getattr(result_or_settings, "settings", result_or_settings)
     config = {
         "problem": problem.name,
+        "profile": problem.profile,
         "seed": settings.seed,
         "search": dataclasses.asdict(settings),
         "problem_config": problem.config_dict(),
@@ -52,6 +53,7 @@ def run_config(problem: Problem, result_or_settings: Any, extra: dict[str, Any] 
 def suite_document(problem: Problem, result: SearchResult) -> dict[str, Any]:
     return {
         "problem": problem.name,
+        "profile": problem.profile,
         "algorithm": result.settings.algorithm,
         "seed": result.settings.seed,
         "evaluations": result.evaluations,
@@ -62,14 +64,22 @@ def suite_document(problem: Problem, result: SearchResult) -> dict[str, Any]:
     }
 
 
-def write_run(out_dir: Path, problem: Problem, result: SearchResult, extra: dict[str, Any] | None = None) -> dict[str, Path]:
-    """Write the run's files; returns their paths by name."""
+def write_run(
+    out_dir: Path, problem: Problem, result: SearchResult, extra: dict[str, Any] | None = None, overwrite: bool = False
+) -> dict[str, Path]:
+    """Write the run's files; returns their paths by name.
+
+    An existing run is never replaced silently: ``FileExistsError`` unless ``overwrite``.
+    """
     out_dir = Path(out_dir)
+    paths = {"config": out_dir / "config.json", "suite": out_dir / "suite.json", "history": out_dir / "history.csv"}
+    existing = [str(p) for p in paths.values() if p.exists()]
+    if existing and not overwrite:
+        raise FileExistsError(f"{out_dir} already holds a run ({existing[0]}); choose another --out or pass --overwrite")
     out_dir.mkdir(parents=True, exist_ok=True)
     config = run_config(problem, result, extra)
     config["finished"] = datetime.now(timezone.utc).isoformat(timespec="seconds")
     config["elapsed_s"] = round(result.elapsed, 3)
-    paths = {"config": out_dir / "config.json", "suite": out_dir / "suite.json", "history": out_dir / "history.csv"}
     paths["config"].write_text(json.dumps(config, indent=2) + "\n")
     paths["suite"].write_text(json.dumps(suite_document(problem, result), indent=2) + "\n")
     with paths["history"].open("w", newline="") as fh:

@@ -81,11 +81,13 @@ class Problem(ABC):
     Config: ClassVar[type]  # a dataclass with every tunable number; must have an ``alpha`` field
 
     def __init__(self, config: Any = None, **overrides: Any):
+        # Config fields may default per profile (None resolved in __post_init__): build the config
+        # from the values given, so that e.g. profile="refined" gets the refined defaults.
         if config is None:
-            config = self.Config()
+            config = self.config_from_dict(overrides)
         elif isinstance(config, dict):
-            config = self.config_from_dict(config)
-        if overrides:
+            config = self.config_from_dict({**config, **overrides})
+        elif overrides:
             config = dataclasses.replace(config, **overrides)
         self.config = config
         self.attributes, self.m_min, self.m_max = self.layout()

@@ -9,40 +9,54 @@ RMSE <= 1 degC.
 Simulation (all numbers in ``ThermostatConfig``), for steps s = 0, 1, ... of ``step_minutes``:
 
 * the goal and room model of step s are those of the element in effect at minute ``s * step``;
-* the room starts at the first goal with the heater ON, and that first phase starts from it;
-* before each step the controller compares the current temperature with the step's goal: ON
-  switches OFF once ``T >= goal + hysteresis``, OFF switches ON once ``T < goal - hysteresis``;
-* a phase (and its curve) restarts only on a switch: ``T0`` is the temperature at the switch and
-  ``n = 1, 2, ...`` counts the steps since it; ON ``T = T0 + k_on1 (1 - exp(-k_on2 n))``, OFF
-  ``T = T0 - k_off1 (1 - exp(-k_off2 n))`` (the paper's formulas, rearranged);
-* the temperature after step s is compared with the goal of step s (the first sample is after the
-  first step), and F1 is the RMSE over all steps of the schedule.
+* the room starts at the first goal with the heater ON;
+* the curve restarts at every element boundary and at every heater switch: ``T0`` is the
+  temperature then and ``n = 1, 2, ...`` counts the steps since; ON ``T = k_on1 (1 - exp(-k_on2 n))
+  + T0``, OFF ``T = k_off1 exp(-k_off2 n) + T0 - k_off1``, with the element's room model;
+* before each step the controller compares the temperature with the step's goal: ON switches OFF
+  once ``T >= goal + hysteresis``, OFF switches ON once ``T < goal - hysteresis``.
 
-Choices where the source is silent:
+The two fidelity profiles (``config.profile``) differ where the authors' replication code (which
+produced the paper's tables) differs from the paper's text:
 
-* when an element boundary changes the room model without a switch, the running phase keeps its
-  ``n``, ``T0`` and the coefficients of the model in effect when it started (``model_switch =
-  "phase"``, the default: the temperature stays continuous); the new model takes effect at the
-  next switch. ``model_switch = "step"`` instead evaluates each step with the current element's
-  coefficients, which makes the curve jump by up to ~2 degC at such boundaries;
-* schedules shorter than 24 h are simulated over their own length only;
-* invalid schedules (R1/R2 broken, or a cell outside its domain) get F1 = 0 and zero metrics
-  except ``duration_min``; ``environment`` still simulates them and says why they are invalid;
-* "uniform" sampling draws every temperature independently but fills durations exactly as the
-  Markov sampler does (only the temperature chain differs);
-* element numbers in reasons are 0-based, like the ``elements[i]`` paths of ``ScenarioError``.
+=================  ===========================================  ==========================================
+                   ``replication`` (default)                    ``refined``
+=================  ===========================================  ==========================================
+heater at a new    re-decided: ON while ``T < goal + h``        kept (plain hysteresis)
+element
+error sample       the temperature at the START of each step    the temperature after each step
+                   (one-step lag; the first sample is 0)
+validity           max - min temperature of the whole           R2: adjacent elements differ by < 5 degC;
+                   schedule <= 5 degC                           R1: longer than 24 h is invalid
+past 24 h          elements after the 24th hour are dropped     invalid (R1)
+                   (not scored, not simulated, not drawn)
+durations          60..285 min step 15 (what the code's         60..240 min step 15 (the paper)
+                   sampler and operators produce)
+sampler            the code's: raise/lower chain, next temp     the spec's chain (t..t+4), last element
+                   t..t+5, last element = the rest of the day   shortened to the horizon if in domain
+                   or merged into the previous one
+=================  ===========================================  ==========================================
+
+Every path (scalar loop for a few schedules, vectorised loop for a batch) reads the curve values
+from one precomputed table (``curve_table``) and adds ``T0``, so an F1 value does not depend on the
+batch it was computed in (bit for bit), which campaigns need to reproduce a seed.
+
+Other choices: schedules shorter than 24 h are simulated over their own length; invalid schedules
+get F1 = 0 and zero metrics except ``duration_min``; ``environment`` still simulates them and says
+why they are invalid; element numbers in reasons are 0-based, like ``ScenarioError`` paths.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from functools import lru_cache
 from typing import Any, ClassVar
 
 import numpy as np
 
 from ..core.attributes import IntRange, ScenarioError
 from ..core.scenario import Scenario
-from .base import Budget, Evaluation, Problem
+from .base import Budget, Evaluation, Problem, check_profile
 
 # (k_on1, k_on2, k_off1, k_off2) per room model 1..7 (the paper prints three; the rest come from
 # the replication data, see the project spec).
@@ -58,83 +72,116 @@ ROOM_MODELS: tuple[tuple[float, float, float, float], ...] = (
 
 TEMP, DUR, MODEL = 0, 1, 2  # attribute columns of G
 
+TEMPERATURE = IntRange("temperature", 16, 25, 1, tolerance=0, unit="degC")
+ROOM_MODEL = IntRange("model", 1, 7, 1, tolerance=0)
+DURATION = IntRange("duration", 60, 240, 15, tolerance=15, unit="min")  # the paper; sampled in both profiles
+# the replication code merges a short remainder of the day into the last element (up to 240 + 45)
+# and its mutation draws 60..285: the durations its search can produce
+REPLICATION_DURATION = IntRange("duration", 60, 285, 15, tolerance=15, unit="min")
+
 
 @dataclass(frozen=True)
 class ThermostatConfig:
     """Every tunable number of the thermostat case study (defaults: paper / replication code)."""
 
+    profile: str = "replication"  # replication | refined (see the module notes)
     alpha: float = 1.5  # MO constraint: "risky" when RMSE > alpha
     requirement_rmse: float = 1.0  # the system requirement (a failure when RMSE exceeds it)
     step_minutes: float = 3.0  # simulation time step
     horizon_minutes: float = 1440.0  # R1: a schedule lasts at most 24 h
     hysteresis: float = 0.1  # on/off band half-width [degC]
-    max_jump: float = 5.0  # R2: |temp(e_i) - temp(e_i+1)| < max_jump
+    max_jump: float = 5.0  # refined: adjacent |temp(e_i) - temp(e_i+1)| < max_jump; replication: range <= max_jump
     sampling: str = "markov"  # "markov" | "uniform" (temperatures of the initial population)
     p_stay: float = 0.3  # Markov chain: P(keep raising / lowering)
-    markov_max_step: int = 4  # Markov chain: next temperature within t..t+4 (raise) / t-4..t (lower)
+    markov_max_step: int | None = None  # next temperature within t..t+k (raise) / t-k..t; None: 5 replication, 4 refined
     room_models: tuple = ROOM_MODELS  # (k_on1, k_on2, k_off1, k_off2) for models 1..7
-    # which coefficients a running phase uses after an element changes the room model without a
-    # heater switch: "phase" = the model in effect when the phase started (continuous; default),
-    # "step" = the model of the current element (the curve jumps at the boundary)
-    model_switch: str = "phase"
 
     def __post_init__(self):
+        check_profile(self.profile)
         # YAML / JSON give lists; keep the config hashable and the table well-formed.
         table = tuple(tuple(float(v) for v in row) for row in self.room_models)
         if not table or any(len(row) != 4 for row in table):
             raise ScenarioError("config.room_models", "each row needs 4 numbers", "(k_on1, k_on2, k_off1, k_off2)")
         object.__setattr__(self, "room_models", table)
+        if self.markov_max_step is None:
+            object.__setattr__(self, "markov_max_step", 5 if self.profile == "replication" else 4)
         if self.sampling not in ("markov", "uniform"):
             raise ScenarioError("config.sampling", f"unknown sampling {self.sampling!r}", "markov|uniform")
         if not self.step_minutes > 0:
             raise ScenarioError("config.step_minutes", "must be positive")
-        if self.model_switch not in ("phase", "step"):
-            raise ScenarioError("config.model_switch", f"unknown value {self.model_switch!r}", "phase|step")
         if not 0.0 <= self.p_stay <= 1.0:
             raise ScenarioError("config.p_stay", "must be a probability", "0..1")
+
+    @property
+    def replication(self) -> bool:
+        return self.profile == "replication"
 
 
 SCALAR_BATCH = 16  # up to this many valid schedules, evaluate() uses the scalar simulator
 
-# --- simulation --------------------------------------------------------------------------------
-def simulate_schedule(
-    goals_per_step, models_per_step, config: ThermostatConfig | None = None, return_heater: bool = False
-):
-    """Exact, slow reference simulator of one schedule (plain Python, the formulas as written).
 
-    ``goals_per_step[s]`` / ``models_per_step[s]`` (1-based model ids) hold during step s. Returns
-    the temperatures after each step (and, if asked, the heater state during each step).
+# --- simulation --------------------------------------------------------------------------------
+@lru_cache(maxsize=8)
+def curve_table(room_models: tuple, n_max: int) -> tuple[np.ndarray, np.ndarray]:
+    """Curve values ``T = (A[r, n] + T0) - B[r]`` for row ``r = 2 * (model - 1) + on``, n = 0..n_max.
+
+    ON: ``A = k_on1 (1 - exp(-k_on2 n))``, ``B = 0``; OFF: ``A = k_off1 exp(-k_off2 n)``,
+    ``B = k_off1`` (the formulas in the replication code's order of operations). One table for
+    every path makes results independent of how scenarios were batched.
+    """
+    k = np.asarray(room_models, dtype=float)
+    n = np.arange(n_max + 1, dtype=float)
+    A = np.empty((2 * len(k), n_max + 1))
+    A[0::2] = k[:, 2:3] * np.exp(-k[:, 3:4] * n)  # OFF (on = 0)
+    A[1::2] = k[:, 0:1] * (1.0 - np.exp(-k[:, 1:2] * n))  # ON (on = 1)
+    B = np.zeros(2 * len(k))
+    B[0::2] = k[:, 2]
+    A.setflags(write=False)
+    B.setflags(write=False)
+    return A, B
+
+
+def simulate_schedule(goals_per_step, models_per_step, config: ThermostatConfig | None = None,
+                      starts=None, return_heater: bool = False):
+    """Plain-Python simulator of one schedule (the reference the vectorised one is tested against).
+
+    ``goals_per_step[s]`` / ``models_per_step[s]`` (1-based model ids) hold during step s and
+    ``starts[s]`` says that step s begins an element (default: wherever goal or model changes).
+    Returns ``(temperatures after each step, errors)`` and, if asked, the heater state per step;
+    ``errors`` are the samples F1 is computed from (lagged in the replication profile).
     """
     config = config or ThermostatConfig()
     h = config.hysteresis
     goals = [float(g) for g in goals_per_step]
     models = [int(m) for m in models_per_step]
+    if starts is None:
+        starts = [s == 0 or goals[s] != goals[s - 1] or models[s] != models[s - 1] for s in range(len(goals))]
+    A, B = curve_table(config.room_models, max(len(goals), 1))
+    A_rows, B_rows = A.tolist(), B.tolist()
+    reset, lag = config.replication, config.replication
     temps: list[float] = []
+    errors: list[float] = []
     heater: list[bool] = []
-    if not goals:
-        return (np.array(temps), np.array(heater, dtype=bool)) if return_heater else np.array(temps)
-    T = goals[0]
-    on = True
-    T0 = T
-    n = 0
-    phase_model = models[0]
-    for goal, model in zip(goals, models):
+    T = goals[0] if goals else 0.0
+    on, T0, n = True, T, 0
+    for goal, model, start in zip(goals, models, starts):
+        if start:  # the curve restarts at every element
+            T0, n = T, 0
+            if reset:
+                on = True
         if on and T >= goal + h:
-            on, T0, n, phase_model = False, T, 0, model
+            on, T0, n = False, T, 0
         elif not on and T < goal - h:
-            on, T0, n, phase_model = True, T, 0, model
+            on, T0, n = True, T, 0
+        before = T - goal
         n += 1
-        used = model if config.model_switch == "step" else phase_model
-        k_on1, k_on2, k_off1, k_off2 = config.room_models[used - 1]
-        if on:
-            T = k_on1 * (1.0 - math.exp(-k_on2 * n)) + T0
-        else:
-            T = k_off1 * math.exp(-k_off2 * n) + T0 - k_off1
+        r = 2 * (model - 1) + int(on)
+        T = (A_rows[r][n] + T0) - B_rows[r]
         temps.append(T)
+        errors.append(before if lag else T - goal)
         heater.append(on)
-    if return_heater:
-        return np.array(temps), np.array(heater, dtype=bool)
-    return np.array(temps)
+    out = (np.array(temps), np.array(errors))
+    return (*out, np.array(heater, dtype=bool)) if return_heater else out
 
 
 @dataclass
@@ -167,19 +214,21 @@ def simulate_batch(
     """Vectorised simulator of a batch of (domain-valid) schedules ``(G, lengths)``.
 
     One Python iteration per time step, numpy over the individuals; nothing of size (P, S) is
-    built unless ``record``. Goals and coefficients change only at element boundaries, so they are
-    applied as sparse "events" (a few rows per step) instead of per-step arrays. ON and OFF share
-    one form, ``T = T0 - A * expm1(-r n)`` with ``(A, r) = (k_on1, k_on2)`` or ``(-k_off1, k_off2)``.
+    built unless ``record``. Goals and room models change only at element boundaries, so they are
+    applied as sparse "events" (a few rows per step) instead of per-step arrays; the curve comes
+    from ``curve_table`` by flat index ``row * (S + 1) + n``.
     """
     config = config or ThermostatConfig()
     G = np.asarray(G, dtype=float)
     lengths = np.asarray(lengths, dtype=int)
     P, m_max = G.shape[0], G.shape[1]
     h = float(config.hysteresis)
-    table = np.asarray(config.room_models, dtype=float)
     first, count = _element_steps(G, lengths, float(config.step_minutes))
     n_steps = count.sum(axis=1)
     S = int(n_steps.max(initial=0))
+    A, B = curve_table(config.room_models, max(S, 1))
+    A_flat, width = A.ravel(), A.shape[1]
+    reset, lag = config.replication, config.replication
 
     # events: element (p, j) takes effect at step first[p, j]; a row's end snapshots its errors
     p_idx, j_idx = np.nonzero(count > 0)
@@ -187,27 +236,20 @@ def simulate_batch(
     order = np.argsort(ev_step, kind="stable")
     p_idx, j_idx, ev_step = p_idx[order], j_idx[order], ev_step[order]
     ev_goal = G[p_idx, j_idx, TEMP]
-    ev_model = G[p_idx, j_idx, MODEL]
-    k = table[ev_model.astype(np.intp) - 1]
-    # per-row parameters, one row each: goal, goal + h, goal - h, A_off, dA, r_off, dr, model
-    ev_par = np.stack(
-        [ev_goal, ev_goal + h, ev_goal - h, -k[:, 2], k[:, 0] + k[:, 2], -k[:, 3], k[:, 3] - k[:, 1], ev_model]
-    )
+    ev_base = 2 * (G[p_idx, j_idx, MODEL].astype(np.int64) - 1)  # table row of the model's OFF curve
     ev_bounds = np.searchsorted(ev_step, np.arange(S + 1))
     end_rows = np.argsort(n_steps, kind="stable")
     end_bounds = np.searchsorted(n_steps[end_rows], np.arange(S + 1))
 
-    par = np.zeros((8, P))
-    par[7] = 1.0
-    goal, up, lo, a_off, da, r_off, dr, model = par  # views, updated in place by the events
+    goal, up, lo = np.zeros(P), np.zeros(P), np.zeros(P)
+    base = np.zeros(P, dtype=np.int64)
     T = G[:, 0, TEMP].copy() if m_max else np.zeros(P)  # start at the first goal, heater ON
     T0 = T.copy()
     on = np.ones(P, dtype=bool)
-    n = np.zeros(P)
+    n = np.zeros(P, dtype=np.int64)
     sw, tmp = np.empty(P, dtype=bool), np.empty(P, dtype=bool)
-    A, x, d = np.empty(P), np.empty(P), np.empty(P)
-    latch = config.model_switch == "phase"
-    phase_A, phase_r = np.zeros(P), np.zeros(P)
+    d, rowB = np.empty(P), np.empty(P)
+    idx = np.empty(P, dtype=np.int64)
     sumsq, maxabs = np.zeros(P), np.zeros(P)
     final_sumsq, final_maxabs = np.zeros(P), np.zeros(P)
     if record:
@@ -216,50 +258,46 @@ def simulate_batch(
 
     for s in range(S):
         a, b = ev_bounds[s], ev_bounds[s + 1]
-        if a < b:
-            par[:, p_idx[a:b]] = ev_par[:, a:b]
+        if a < b:  # elements starting now: new goal and model; the curve restarts
+            rows = p_idx[a:b]
+            g = ev_goal[a:b]
+            goal[rows], up[rows], lo[rows], base[rows] = g, g + h, g - h, ev_base[a:b]
+            T0[rows], n[rows] = T[rows], 0
+            if reset:
+                on[rows] = True
         a, b = end_bounds[s], end_bounds[s + 1]
         if a < b:  # rows whose schedule ended before this step
             rows = end_rows[a:b]
             final_sumsq[rows], final_maxabs[rows] = sumsq[rows], maxabs[rows]
-        # switch: ON -> OFF once T >= goal + h, OFF -> ON once T < goal - h
+        # switch: ON -> OFF once T >= goal + h, OFF -> ON once T < goal - h; restart the curve
         np.greater_equal(T, up, out=sw)
         sw &= on
         np.less(T, lo, out=tmp)
         np.greater(tmp, on, out=tmp)  # (T < lo) and not on
         sw |= tmp
         on ^= sw
-        # restart the phase where it switched: T0 = T, n = 0; then n += 1
+        np.copyto(T0, T, where=sw)
         np.logical_not(sw, out=tmp)
         np.multiply(n, tmp, out=n)
-        n += 1.0
-        np.subtract(T, T0, out=d)
-        d *= sw
-        T0 += d
-        # T = T0 - A * expm1(-r * n), (A, r) of the current element or latched at the phase start
-        np.multiply(on, da, out=A)
-        A += a_off
-        np.multiply(on, dr, out=x)
-        x += r_off
-        if latch:
-            if s == 0:
-                phase_A[:], phase_r[:] = A, x
-            else:
-                np.copyto(phase_A, A, where=sw)
-                np.copyto(phase_r, x, where=sw)
-            A[:], x[:] = phase_A, phase_r
-        x *= n
-        np.expm1(x, out=x)
-        x *= A
-        np.subtract(T0, x, out=T)
-        # error against this step's goal
-        np.subtract(T, goal, out=d)
+        if lag:
+            np.subtract(T, goal, out=d)
+        n += 1
+        # T = (A[row, n] + T0) - B[row], row = base + on
+        np.add(base, on, out=idx)
+        np.take(B, idx, out=rowB)
+        idx *= width
+        idx += n
+        np.take(A_flat, idx, out=T)
+        T += T0
+        T -= rowB
+        if not lag:
+            np.subtract(T, goal, out=d)
         np.abs(d, out=d)
         np.maximum(maxabs, d, out=maxabs)
         d *= d
         sumsq += d
         if record:
-            rec_T[s], rec_on[s], rec_goal[s], rec_model[s] = T, on, goal, model
+            rec_T[s], rec_on[s], rec_goal[s], rec_model[s] = T, on, goal, base // 2 + 1
 
     ended = n_steps < S
     sumsq[ended], maxabs[ended] = final_sumsq[ended], final_maxabs[ended]
@@ -273,8 +311,8 @@ def simulate_batch(
 
 def schedule_steps(
     setpoints, durations, models, config: ThermostatConfig | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """Per-element schedule -> per-step goals and models (plain Python, for one schedule).
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-element schedule -> per-step goals, models and element starts (one schedule).
 
     Step s belongs to the element whose interval ``[start, end)`` holds minute ``s * step``.
     """
@@ -282,16 +320,20 @@ def schedule_steps(
     step = float(config.step_minutes)
     goals: list[float] = []
     room: list[int] = []
+    starts: list[bool] = []
     start = 0.0
     for temp, dur, model in zip(setpoints, durations, models):
         end = start + float(dur)
         s = len(goals)
+        first = True
         while s * step < end - 1e-9:
             goals.append(float(temp))
             room.append(int(model))
+            starts.append(first)
+            first = False
             s += 1
         start = end
-    return np.array(goals), np.array(room, dtype=np.int64)
+    return np.array(goals), np.array(room, dtype=np.int64), np.array(starts, dtype=bool)
 
 
 # --- the environment ("TC to environment") -------------------------------------------------------
@@ -331,11 +373,7 @@ class ThermostatProblem(Problem):
     """Day schedules for an on/off thermostat; F1 = RMSE to the schedule [degC]."""
 
     name: ClassVar[str] = "thermostat"
-    attributes = (
-        IntRange("temperature", 16, 25, 1, tolerance=0, unit="degC"),
-        IntRange("duration", 60, 240, 15, tolerance=15, unit="min"),
-        IntRange("model", 1, 7, 1, tolerance=0),
-    )
+    attributes = (TEMPERATURE, DURATION, ROOM_MODEL)
     m_min: ClassVar[int] = 1
     m_max: ClassVar[int] = 24
     f1_label: ClassVar[str] = "RMSE to schedule [degC]"
@@ -348,71 +386,118 @@ class ThermostatProblem(Problem):
         if n_models < self.attributes[MODEL].high:
             raise ScenarioError("config.room_models", f"{n_models} rows", f"{self.attributes[MODEL].high} rows")
 
+    def layout(self):
+        if self.config.replication:
+            return (TEMPERATURE, REPLICATION_DURATION, ROOM_MODEL), self.m_min, self.m_max
+        return super().layout()
+
     # --- sampling ----------------------------------------------------------------------------
+    def _next_temperatures(self, temp: np.ndarray, raising: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """One step of the raise/lower chain (or a uniform draw): the next element's temperature."""
+        cfg = self.config
+        t_attr = TEMPERATURE
+        if cfg.sampling != "markov":
+            return t_attr.sample(rng, len(temp))
+        raising ^= rng.random(len(temp)) >= cfg.p_stay
+        k = int(cfg.markov_max_step)
+        lo = np.where(raising, temp, np.maximum(temp - k, t_attr.low))
+        hi = np.where(raising, np.minimum(temp + k, t_attr.high), temp)
+        return lo + np.floor(rng.random(len(temp)) * (hi - lo + 1))
+
     def sample(self, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         """Fill each schedule to the horizon; temperatures from the raise/lower Markov chain.
 
-        Elements are appended while the next drawn duration fits; the first that does not is
-        shortened to end exactly at the horizon if that length is still in the duration domain,
-        otherwise dropped. Always domain-valid; R1 always holds; R2 holds for Markov sampling.
+        Durations are drawn from the paper's 60..240 min in both profiles; how the day is closed
+        differs: ``refined`` shortens the first element that does not fit to end exactly at the
+        horizon if that length is in the domain, else drops it; ``replication`` (the replication
+        code's generator) gives the next element the rest of the day when that rest lies strictly
+        between the shortest and longest duration, merges a rest shorter than the shortest one into
+        the previous element, and otherwise draws a duration (an element that then passes the
+        horizon is dropped, as that code's random search does). Always domain-valid and <= 24 h.
         """
         cfg = self.config
-        t_attr, d_attr, m_attr = self.attributes
+        d_attr, m_attr = DURATION, ROOM_MODEL
         G = np.zeros((n, self.m_max, 3))
         lengths = np.zeros(n, dtype=int)
         total = np.zeros(n)
         active = np.ones(n, dtype=bool)
         horizon = float(cfg.horizon_minutes)
         raising = rng.random(n) < 0.5
-        temp = t_attr.sample(rng, n)
-        k = int(cfg.markov_max_step)
+        temp = TEMPERATURE.sample(rng, n)
         for j in range(self.m_max):
             if j > 0:
-                if cfg.sampling == "markov":
-                    raising ^= rng.random(n) >= cfg.p_stay
-                    lo = np.where(raising, temp, np.maximum(temp - k, t_attr.low))
-                    hi = np.where(raising, np.minimum(temp + k, t_attr.high), temp)
-                    temp = lo + np.floor(rng.random(n) * (hi - lo + 1))
-                else:
-                    temp = t_attr.sample(rng, n)
+                temp = self._next_temperatures(temp, raising, rng)
+            model = m_attr.sample(rng, n)
             dur = d_attr.sample(rng, n)
-            fits = total + dur <= horizon
             rest = horizon - total
-            rest_ok = d_attr.in_domain(rest)
-            take = active & (fits | rest_ok)
-            dur = np.where(fits, dur, rest)
+            if cfg.replication and j > 0:
+                last = (rest > d_attr.low) & (rest < d_attr.high)  # the rest of the day, then stop
+                merge = active & (rest < d_attr.low)  # too short: the previous element takes it
+                G[merge, j - 1, DUR] += rest[merge]
+                total[merge] += rest[merge]
+                dur = np.where(last, rest, dur)
+                take = active & ~merge
+                fits = last | (total + dur <= horizon)
+                take &= fits
+                done = ~(fits & ~last & (total + dur < horizon))
+            else:
+                fits = total + dur <= horizon
+                rest_ok = d_attr.in_domain(rest) if not cfg.replication else np.zeros(n, dtype=bool)
+                take = active & (fits | rest_ok)
+                dur = np.where(fits, dur, rest)
+                done = ~fits  # a shortened (or dropped) element ends the schedule
+                if cfg.replication:  # first element: the day goes on unless it is already full
+                    done = total + dur >= horizon
             G[take, j, TEMP] = temp[take]
             G[take, j, DUR] = dur[take]
-            G[take, j, MODEL] = m_attr.sample(rng, int(take.sum()))
+            G[take, j, MODEL] = model[take]
             lengths += take
             total += np.where(take, dur, 0.0)
-            active &= fits  # a shortened (or dropped) element ends the schedule
+            active &= ~done
             if not active.any():
                 break
         # m_min >= 1: a horizon below the shortest duration still needs one element
         empty = lengths == 0
         if empty.any():
-            G[empty, 0, TEMP] = t_attr.sample(rng, int(empty.sum()))
+            G[empty, 0, TEMP] = TEMPERATURE.sample(rng, int(empty.sum()))
             G[empty, 0, DUR] = d_attr.low
             G[empty, 0, MODEL] = m_attr.sample(rng, int(empty.sum()))
             lengths[empty] = 1
         return G, lengths
 
     # --- surrogate fitness --------------------------------------------------------------------
-    def check(self, G: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, list[str | None], np.ndarray]:
-        """Restrictions R1, R2 (and domains): validity, reason per row, total duration [min]."""
+    def scored_lengths(self, G: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+        """How many elements are simulated: all (refined), or those ending within 24 h (replication)."""
+        if not self.config.replication:
+            return np.asarray(lengths, dtype=int)
+        used = np.arange(G.shape[1])[None, :] < np.asarray(lengths)[:, None]
+        ends = np.cumsum(np.where(used, G[:, :, DUR], 0.0), axis=1)
+        return np.minimum(np.sum(ends <= self.config.horizon_minutes + 1e-9, axis=1), lengths)
+
+    def check(self, G: np.ndarray, lengths: np.ndarray):
+        """Restrictions (and domains) of the profile -> validity, reason per row, scored duration
+        [min] and scored lengths (see ``scored_lengths``).
+
+        refined: R1 (<= 24 h) and R2 (adjacent jump < 5 degC); replication: the scored schedule's
+        temperatures span <= 5 degC. Every element, scored or not, must be inside its domain.
+        """
         cfg = self.config
         G = np.asarray(G, dtype=float)
         lengths = np.asarray(lengths, dtype=int)
         P = len(G)
+        domain_ok = self.codec.in_domain(G, lengths)
+        lengths = self.scored_lengths(G, lengths)
         used = np.arange(self.m_max)[None, :] < lengths[:, None]
         total = np.where(used, G[:, :, DUR], 0.0).sum(axis=1)
-        domain_ok = self.codec.in_domain(G, lengths)
         r1 = total <= cfg.horizon_minutes
-        jump = np.abs(np.diff(G[:, :, TEMP], axis=1))
-        pair_used = used[:, 1:]
-        bad_pair = (jump >= cfg.max_jump) & pair_used
-        r2 = ~bad_pair.any(axis=1)
+        temps = G[:, :, TEMP]
+        if cfg.replication:
+            span = np.where(used, temps, -np.inf).max(axis=1) - np.where(used, temps, np.inf).min(axis=1)
+            r2 = span <= cfg.max_jump
+            bad_pair = None
+        else:
+            bad_pair = (np.abs(np.diff(temps, axis=1)) >= cfg.max_jump) & used[:, 1:]
+            r2 = ~bad_pair.any(axis=1)
         valid = domain_ok & r1 & r2
         reasons: list[str | None] = [None] * P
         for i in np.flatnonzero(~valid):
@@ -421,56 +506,74 @@ class ThermostatProblem(Problem):
                 parts.append(self.codec.domain_reason(G[i], int(lengths[i])))
             else:
                 if not r1[i]:
+                    parts.append(f"R1: total duration {total[i]:g} min > {cfg.horizon_minutes:g} min")
+                if not r2[i] and bad_pair is None:
+                    m = int(lengths[i])
                     parts.append(
-                        f"R1: total duration {total[i]:g} min > {cfg.horizon_minutes:g} min"
+                        f"R2: temperatures span {temps[i, :m].min():g}..{temps[i, :m].max():g} degC "
+                        f"(more than {cfg.max_jump:g})"
                     )
-                if not r2[i]:
+                elif not r2[i]:
                     j = int(np.argmax(bad_pair[i]))
                     a, b = G[i, j, TEMP], G[i, j + 1, TEMP]
                     parts.append(
                         f"R2: |{a:g}-{b:g}| >= {cfg.max_jump:g} degC between elements[{j}] and elements[{j + 1}]"
                     )
             reasons[i] = "; ".join(parts)
-        return valid, reasons, total
+        return valid, reasons, total, lengths
 
     def evaluate(self, G: np.ndarray, lengths: np.ndarray) -> Evaluation:
-        """R1/R2 check, then one vectorised simulation of all valid rows; F1 = RMSE (0 if invalid)."""
+        """Restrictions, then the simulation of all valid rows; F1 = RMSE (0 if invalid).
+
+        A few schedules (sim nodes, CLI) go through the plain loop (~0.3 ms each) since the
+        vectorised one pays ~15 ms of per-step numpy overhead whatever the batch size; both read
+        one curve table, so the results are identical bit for bit.
+        """
         G = np.asarray(G, dtype=float)
         lengths = np.asarray(lengths, dtype=int)
         P = len(G)
-        valid, reasons, total = self.check(G, lengths)
+        valid, reasons, total, scored = self.check(G, lengths)
         f1 = np.zeros(P)
         max_error = np.zeros(P)
         rows = np.flatnonzero(valid)
         if 0 < len(rows) <= SCALAR_BATCH:
-            # a few schedules (sim nodes, CLI): the plain loop costs ~0.3 ms each, while the
-            # vectorised one pays ~15 ms of per-step numpy overhead whatever the batch size
             for i in rows:
-                m = lengths[i]
-                goals, models = schedule_steps(G[i, :m, TEMP], G[i, :m, DUR], G[i, :m, MODEL], self.config)
-                err = simulate_schedule(goals, models, self.config) - np.asarray(goals, dtype=float)
-                f1[i] = math.sqrt(float(np.mean(err**2))) if len(err) else 0.0
+                m = scored[i]
+                goals, models, starts = schedule_steps(G[i, :m, TEMP], G[i, :m, DUR], G[i, :m, MODEL], self.config)
+                _, err = simulate_schedule(goals, models, self.config, starts=starts)
+                sumsq = 0.0
+                for e in err.tolist():  # summed in step order, as the vectorised loop does
+                    sumsq += e * e
+                f1[i] = math.sqrt(sumsq / max(len(err), 1))
                 max_error[i] = float(np.max(np.abs(err))) if len(err) else 0.0
         elif len(rows):
-            run = simulate_batch(G[rows], lengths[rows], self.config)
+            run = simulate_batch(G[rows], scored[rows], self.config)
             f1[rows], max_error[rows] = run.rmse, run.max_error
         return Evaluation(
             f1=f1,
             valid=valid,
             reasons=reasons,
-            metrics={"rmse": f1.copy(), "max_error": max_error, "duration_min": total},
+            metrics={
+                "rmse": f1.copy(),
+                "max_error": max_error,
+                "duration_min": total,
+                "scored_elements": scored,
+            },
         )
 
     # --- TC to environment ----------------------------------------------------------------------
     def environment(self, scenario: Scenario) -> Schedule:
-        """Simulate one schedule step by step (even if invalid: ``valid``/``reason`` say so)."""
+        """The schedule that is scored, simulated step by step (even if invalid: ``reason`` says why).
+
+        In the replication profile, elements past the 24th hour are not part of it.
+        """
         if isinstance(scenario, dict):
             scenario = self.parse(scenario)
         row = self.codec.to_row(scenario)
         G, lengths = self.codec.split(row)
-        valid, reasons, _ = self.check(G, lengths)
-        run = simulate_batch(G, lengths, self.config, record=True)
-        m = int(lengths[0])
+        valid, reasons, _, scored = self.check(G, lengths)
+        run = simulate_batch(G, scored, self.config, record=True)
+        m = int(scored[0])
         step = float(self.config.step_minutes)
         return Schedule(
             minutes=step * np.arange(1, int(run.n_steps[0]) + 1),

@@ -1,7 +1,7 @@
-"""`ambiegen execute SCENARIO.json [--json] [--seed S] [--set OPTION=VALUE ...]`.
+"""`ambiegen execute SCENARIO.json [--json] [--seed S] [--profile P] [--set OPTION=VALUE ...]`.
 
 Runs one scenario on its full-model simulator (no ROS) and prints the verdict; with ``--json``
-exactly one object ``{"problem", "valid", "failed", "failure_kind", "metrics"}`` (failure_kind
+exactly one object ``{"problem", "valid", "failed", "failure_kind", "metrics", "profile"}`` (failure_kind
 null when the run passed). Bad input (unreadable or malformed scenario, unknown option) raises
 the CLI's ``BadInput`` / ``ScenarioError`` so ``ambiegen`` exits with status 2 and one line.
 Register with ``register_cli(subparsers)``.
@@ -65,16 +65,17 @@ def cmd_execute(args: argparse.Namespace) -> int:
     from ..cli import load_scenario_file
     from .full_model import full_model_executor
 
-    problem, scenario = load_scenario_file(args.scenario)
+    problem, scenario = load_scenario_file(args.scenario, args.profile)
     executor = full_model_executor(problem, **parse_options(args.set))
     outcome = executor.execute(scenario, seed=args.seed)
     out = result_json(problem.name, outcome)
+    out["profile"] = problem.profile
     if args.json:
         print(json.dumps(out))
         return 0
     verdict = "FAILED" if out["failed"] else ("not run (invalid)" if not out["valid"] else "passed")
     kind = f" [{out['failure_kind']}]" if out["failure_kind"] else ""
-    print(f"{problem.name}: {verdict}{kind}: {outcome.detail}")
+    print(f"{problem.name} [{problem.profile}]: {verdict}{kind}: {outcome.detail}")
     for key, value in out["metrics"].items():
         if key not in ("detail",):
             print(f"  {key}: {value:.4g}" if isinstance(value, float) else f"  {key}: {value}")
@@ -90,6 +91,9 @@ def register_cli(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="simulator seed (sensor noise); default 0")
     p.add_argument("--set", action="append", default=[], metavar="OPTION=VALUE",
                    help="simulator option, e.g. oob_tolerance=0.95 or controller=pid (repeatable)")
+    from ..cli import add_profile_option
+
+    add_profile_option(p)
     p.set_defaults(func=cmd_execute)
 
 

@@ -1,4 +1,6 @@
-"""Thermostat case study: restrictions, simulation semantics, vectorised == reference, sampler, plot."""
+"""Thermostat case study, refined profile (the paper's text) and what both profiles share:
+restrictions, simulation semantics, vectorised == reference, sampler, plot. The replication
+profile's fidelity to the authors' code is pinned in test_thermostat_replication.py."""
 from __future__ import annotations
 
 import math
@@ -29,7 +31,10 @@ def scenario(temps, durations, models) -> Scenario:
 
 @pytest.fixture(scope="module")
 def problem() -> ThermostatProblem:
-    return ThermostatProblem()
+    return ThermostatProblem(profile="refined")
+
+
+PROFILES = ("replication", "refined")
 
 
 def test_declared_shape(problem):
@@ -90,40 +95,60 @@ def test_invalid_rows_do_not_change_valid_results(problem):
 def test_first_steps_follow_the_paper_formulas():
     """Start at the first goal with the heater ON; the first sample is after the first step."""
     k_on1, k_on2, k_off1, k_off2 = ROOM_MODELS[0]
-    temps, heater = simulate_schedule([20.0] * 4, [1] * 4, return_heater=True)
+    config = ThermostatConfig(profile="refined")
+    temps, errors, heater = simulate_schedule([20.0] * 4, [1] * 4, config, return_heater=True)
     t1 = 20.0 + k_on1 * (1 - math.exp(-k_on2))
     assert temps[0] == pytest.approx(t1, abs=1e-12)
     # t1 >= 20.1, so the heater switches OFF and a new phase starts from t1 with n = 1, 2
     assert temps[1] == pytest.approx(t1 + k_off1 * math.exp(-k_off2) - k_off1, abs=1e-12)
     assert temps[2] == pytest.approx(t1 + k_off1 * math.exp(-2 * k_off2) - k_off1, abs=1e-12)
     assert list(heater[:3]) == [True, False, False]
+    np.testing.assert_array_equal(errors, temps - 20.0)  # refined: sampled after each step
 
 
-def test_model_change_without_switch_keeps_the_phase():
-    """n and T0 continue across a model change; "phase" keeps the phase's coefficients (continuous),
-    "step" applies the new element's coefficients at once (documented choices)."""
+def test_curve_restarts_at_every_element_boundary():
+    """Both profiles: a new element restarts the curve (T0 = T, n = 1, its room model), with or
+    without a heater switch; refined keeps the heater state, replication re-decides it."""
     goals = [16.0, 25.0, 25.0, 25.0]
     models = [1, 1, 1, 2]
+    starts = [True, True, False, True]  # elements: step 0 | steps 1-2 | step 3 (same goal, model 2)
     k1, k2 = ROOM_MODELS[0][:2]
-    for mode in ("phase", "step"):
-        temps = simulate_schedule(goals, models, ThermostatConfig(model_switch=mode))
-        assert temps[2] == pytest.approx(16 + k1 * (1 - math.exp(-3 * k2)), abs=1e-12)
-    phase = simulate_schedule(goals, models, ThermostatConfig(model_switch="phase"))
-    assert phase[3] == pytest.approx(16 + k1 * (1 - math.exp(-4 * k2)), abs=1e-12)
     k1b, k2b = ROOM_MODELS[1][:2]
-    step = simulate_schedule(goals, models, ThermostatConfig(model_switch="step"))
-    assert step[3] == pytest.approx(16 + k1b * (1 - math.exp(-4 * k2b)), abs=1e-12)
+    for profile in PROFILES:
+        config = ThermostatConfig(profile=profile)
+        temps, _ = simulate_schedule(goals, models, config, starts=starts)
+        assert temps[0] == pytest.approx(16 + k1 * (1 - math.exp(-k2)), abs=1e-12)
+        # step 1 starts element 2 (goal 25): the curve restarts from temps[0] with n = 1, 2
+        assert temps[1] == pytest.approx(temps[0] + k1 * (1 - math.exp(-k2)), abs=1e-12)
+        assert temps[2] == pytest.approx(temps[0] + k1 * (1 - math.exp(-2 * k2)), abs=1e-12)
+        # step 3 starts element 3 without a switch: restart with model 2, n = 1
+        assert temps[3] == pytest.approx(temps[2] + k1b * (1 - math.exp(-k2b)), abs=1e-12)
     G = np.zeros((1, 24, 3))
-    G[0, :2] = [[16, 3, 1], [25, 9, 2]]  # 3 min then 9 min at step 3 min
-    for mode in ("phase", "step"):
-        config = ThermostatConfig(model_switch=mode)
-        run = simulate_batch(G, np.array([2]), config, record=True)
-        np.testing.assert_allclose(run.temperature[0, :4], simulate_schedule(goals, [1, 2, 2, 2], config), atol=1e-12)
+    G[0, :3] = [[16, 3, 1], [25, 6, 1], [25, 3, 2]]  # 3 + 6 + 3 minutes at step 3 min
+    for profile in PROFILES:
+        config = ThermostatConfig(profile=profile)
+        run = simulate_batch(G, np.array([3]), config, record=True)
+        temps, _ = simulate_schedule(goals, models, config, starts=starts)
+        np.testing.assert_array_equal(run.temperature[0, :4], temps)
+
+
+def test_replication_redecides_the_heater_at_an_element_boundary():
+    """Cooling towards 20 (OFF), then an element with goal 20 again at T within the band:
+    refined stays OFF (hysteresis), replication turns ON since T < goal + h."""
+    goals = [20.0] * 12
+    starts = [s in (0, 6) for s in range(12)]
+    k = ThermostatConfig(profile="refined")
+    t_ref, _, h_ref = simulate_schedule(goals, [1] * 12, k, starts=starts, return_heater=True)
+    t_rep, _, h_rep = simulate_schedule(goals, [1] * 12, ThermostatConfig(), starts=starts, return_heater=True)
+    np.testing.assert_array_equal(t_ref[:6], t_rep[:6])
+    assert not h_ref[5] and not h_rep[5]  # cooling before the boundary in both
+    assert h_rep[6] and not h_ref[6]
 
 
 def test_schedule_steps_maps_minutes_to_elements():
-    goals, models = schedule_steps([20, 22], [60, 75], [3, 4])
+    goals, models, starts = schedule_steps([20, 22], [60, 75], [3, 4])
     assert len(goals) == (60 + 75) // 3
+    assert list(np.flatnonzero(starts)) == [0, 20]
     assert list(goals[:20]) == [20] * 20 and list(goals[20:]) == [22] * 25
     assert list(models[19:21]) == [3, 4]
 
@@ -150,27 +175,27 @@ def test_harsh_schedule_breaks_the_requirement(problem):
 def _reference_run(G, lengths, config):
     out = []
     for row, m in zip(G, lengths):
-        goals, models = schedule_steps(row[:m, 0], row[:m, 1], row[:m, 2], config)
-        out.append((goals, models, simulate_schedule(goals, models, config)))
+        goals, models, starts = schedule_steps(row[:m, 0], row[:m, 1], row[:m, 2], config)
+        out.append((goals, models, *simulate_schedule(goals, models, config, starts=starts)))
     return out
 
 
-@pytest.mark.parametrize("sampling, model_switch", [("markov", "phase"), ("uniform", "phase"), ("markov", "step")])
-def test_vectorised_matches_reference(sampling, model_switch):
-    problem = ThermostatProblem(sampling=sampling, model_switch=model_switch)
+@pytest.mark.parametrize("sampling, profile", [("markov", "refined"), ("uniform", "refined"), ("markov", "replication")])
+def test_vectorised_matches_reference(sampling, profile):
+    """Same temperatures and errors bit for bit: both read one curve table."""
+    problem = ThermostatProblem(sampling=sampling, profile=profile)
     G, lengths = problem.sample(50, np.random.default_rng(7))
     # a few short schedules so rows end at different steps within one batch
     G[:5, 3:] = 0.0
     lengths[:5] = 3
     G[5, 0, 1], lengths[5] = 60, 1
     run = simulate_batch(G, lengths, problem.config, record=True)
-    for i, (goals, models, temps) in enumerate(_reference_run(G, lengths, problem.config)):
+    for i, (goals, models, temps, err) in enumerate(_reference_run(G, lengths, problem.config)):
         n = len(goals)
         assert run.n_steps[i] == n
         np.testing.assert_array_equal(run.goal[i, :n], goals)
         np.testing.assert_array_equal(run.model[i, :n], models)
-        np.testing.assert_allclose(run.temperature[i, :n], temps, rtol=0, atol=1e-10)
-        err = temps - goals
+        np.testing.assert_array_equal(run.temperature[i, :n], temps)
         assert run.rmse[i] == pytest.approx(np.sqrt(np.mean(err**2)), abs=1e-10)
         assert run.max_error[i] == pytest.approx(np.abs(err).max(), abs=1e-10)
 
@@ -179,7 +204,8 @@ def test_evaluate_matches_reference_rmse(problem):
     G, lengths = problem.sample(50, np.random.default_rng(11))
     ev = problem.evaluate(G, lengths)
     assert ev.valid.all()
-    for i, (goals, _, temps) in enumerate(_reference_run(G, lengths, problem.config)):
+    for i, (goals, _, temps, err) in enumerate(_reference_run(G, lengths, problem.config)):
+        np.testing.assert_array_equal(err, temps - goals)
         assert ev.f1[i] == pytest.approx(np.sqrt(np.mean((temps - goals) ** 2)), abs=1e-10)
 
 
@@ -187,7 +213,7 @@ def test_evaluate_matches_reference_rmse(problem):
 @settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), sampling=st.sampled_from(["markov", "uniform"]))
 def test_sampler_is_domain_valid_and_fills_the_day(seed, sampling):
-    problem = ThermostatProblem(sampling=sampling)
+    problem = ThermostatProblem(sampling=sampling, profile="refined")
     G, lengths = problem.sample(64, np.random.default_rng(seed))
     assert problem.codec.in_domain(G, lengths).all()
     used = np.arange(problem.m_max)[None, :] < lengths[:, None]
@@ -201,8 +227,9 @@ def test_sampler_is_domain_valid_and_fills_the_day(seed, sampling):
         assert problem.evaluate(G, lengths).valid.all()
 
 
-def test_markov_chain_mostly_switches_direction():
-    problem = ThermostatProblem()
+@pytest.mark.parametrize("profile", PROFILES)
+def test_markov_chain_mostly_switches_direction(profile):
+    problem = ThermostatProblem(profile=profile)
     G, lengths = problem.sample(2000, np.random.default_rng(3))
     d = np.diff(G[:, :, 0], axis=1)
     used = np.arange(1, problem.m_max)[None, :] < lengths[:, None]
@@ -249,6 +276,8 @@ def test_config_from_dict_and_bad_values():
         ThermostatProblem(sampling="gaussian")
     with pytest.raises(ScenarioError):
         ThermostatProblem(room_models=ROOM_MODELS[:3])
+    with pytest.raises(ScenarioError, match="profile"):
+        ThermostatProblem(profile="paper")
 
 
 def test_plot_renders_png(problem, tmp_path):
@@ -265,15 +294,17 @@ def test_plot_renders_png(problem, tmp_path):
     plt.close(fig)
 
 
-def test_small_batches_use_the_scalar_path_with_identical_results():
-    """evaluate() switches to the plain simulator for a few schedules; F1 must not depend on it."""
+@pytest.mark.parametrize("profile", PROFILES)
+def test_small_batches_use_the_scalar_path_with_identical_results(profile):
+    """evaluate() switches to the plain simulator for a few schedules; F1 must not depend on it,
+    not even in the last bit (a campaign's workers batch scenarios as they arrive)."""
     from ambiegen_ros.problems import thermostat as module
 
-    problem = ThermostatProblem()
+    problem = ThermostatProblem(profile=profile)
     G, lengths = problem.sample(40, np.random.default_rng(11))
     big = problem.evaluate(G, lengths)  # 40 > SCALAR_BATCH: vectorised
     assert len(G) > module.SCALAR_BATCH
     for i in range(0, 40, 5):
         small = problem.evaluate(G[i : i + 5], lengths[i : i + 5])  # scalar path
-        np.testing.assert_allclose(small.f1, big.f1[i : i + 5], atol=1e-9)
-        np.testing.assert_allclose(small.metrics["max_error"], big.metrics["max_error"][i : i + 5], atol=1e-9)
+        np.testing.assert_array_equal(small.f1, big.f1[i : i + 5])
+        np.testing.assert_array_equal(small.metrics["max_error"], big.metrics["max_error"][i : i + 5])
