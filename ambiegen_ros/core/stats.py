@@ -1,0 +1,89 @@
+"""The paper's statistics: two-sided Mann-Whitney U, Cliff's delta and its magnitude, Spearman.
+
+The paper compares algorithms with a two-tailed Mann-Whitney U test and measures the effect
+size with Cliff's delta, labelled with the usual thresholds (Romano et al.):
+negligible < 0.147 <= small < 0.33 <= medium < 0.474 <= large (on |delta|).
+"""
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+import numpy as np
+
+MAGNITUDES = ((0.147, "negligible"), (0.33, "small"), (0.474, "medium"))
+
+
+def _sample(values: Sequence[float]) -> np.ndarray:
+    """Finite values only: a missing measurement (NaN/None) is not evidence for either side."""
+    a = np.asarray([np.nan if v is None else v for v in values], dtype=float)
+    return a[np.isfinite(a)]
+
+
+def cliffs_delta(a: Sequence[float], b: Sequence[float]) -> float:
+    """P(a > b) - P(a < b) over all pairs; NaN when a sample is empty."""
+    x, y = _sample(a), _sample(b)
+    if len(x) == 0 or len(y) == 0:
+        return math.nan
+    diff = x[:, None] - y[None, :]
+    return float((np.count_nonzero(diff > 0) - np.count_nonzero(diff < 0)) / diff.size)
+
+
+def magnitude(delta: float) -> str:
+    """The paper's label of |delta| ("n/a" for NaN)."""
+    if not math.isfinite(delta):
+        return "n/a"
+    d = abs(delta)
+    for limit, label in MAGNITUDES:
+        if d < limit:
+            return label
+    return "large"
+
+
+def mann_whitney(a: Sequence[float], b: Sequence[float]) -> float:
+    """Two-sided Mann-Whitney U p-value (scipy; exact for small samples without ties).
+
+    Two samples made of one and the same value carry no evidence of a difference: p = 1
+    (scipy's normal approximation has zero variance there). NaN when a sample is empty.
+    """
+    from scipy.stats import mannwhitneyu
+
+    x, y = _sample(a), _sample(b)
+    if len(x) == 0 or len(y) == 0:
+        return math.nan
+    if np.ptp(np.concatenate([x, y])) == 0:
+        return 1.0
+    return float(mannwhitneyu(x, y, alternative="two-sided").pvalue)
+
+
+def compare(metric: str, name_a: str, a: Sequence[float], name_b: str, b: Sequence[float]) -> dict:
+    """One row of ``stats.json``: the test and effect size of ``a`` against ``b``."""
+    delta = cliffs_delta(a, b)
+    p = mann_whitney(a, b)
+    return {
+        "metric": metric,
+        "a": name_a,
+        "b": name_b,
+        "n_a": int(len(_sample(a))),
+        "n_b": int(len(_sample(b))),
+        "p_value": None if math.isnan(p) else p,
+        "cliffs_delta": None if math.isnan(delta) else delta,
+        "magnitude": magnitude(delta),
+    }
+
+
+def spearman(x: Sequence[float], y: Sequence[float]) -> tuple[float, float, int]:
+    """(rho, p-value, n) over the pairs where both are finite; NaN when either side is constant."""
+    from scipy.stats import spearmanr
+
+    xa = np.asarray([np.nan if v is None else v for v in x], dtype=float)
+    ya = np.asarray([np.nan if v is None else v for v in y], dtype=float)
+    keep = np.isfinite(xa) & np.isfinite(ya)
+    n = int(keep.sum())
+    if n < 3 or np.ptp(xa[keep]) == 0 or np.ptp(ya[keep]) == 0:
+        return math.nan, math.nan, n
+    res = spearmanr(xa[keep], ya[keep])
+    return float(res[0]), float(res[1]), n
+
+
+__all__ = ["MAGNITUDES", "cliffs_delta", "compare", "magnitude", "mann_whitney", "spearman"]
