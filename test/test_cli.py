@@ -104,6 +104,42 @@ def test_search_writes_a_complete_run_directory_and_same_seed_same_suite(tmp_pat
     path = write(tmp_path, "best.json", suite[0]["scenario"])
     doc = json.loads(ambiegen("evaluate", str(path), "--json").stdout)
     assert doc["f1"] == pytest.approx(suite[0]["f1"])
+    assert config["profile"] == doc["profile"] == "replication"
+    # the run is never overwritten silently
+    before = (runs[0] / "suite.json").read_bytes()
+    again = ambiegen("search", "--problem", "thermostat", "--evaluations", "300", "--seed", "12", "--out", str(runs[0]))
+    assert again.returncode == 2 and "--overwrite" in again.stderr
+    assert (runs[0] / "suite.json").read_bytes() == before
+
+
+def test_evaluate_a_suite_file_line_by_line(tmp_path):
+    """JSON Lines in, one JSON object per line out, same order; bad lines answered in place."""
+    day = {"problem": "thermostat", "elements": [{"temperature": t, "duration": 240, "model": m}
+                                                for t, m in [(20, 1), (24, 7), (20, 2), (24, 7), (20, 3), (24, 1)]]}
+    lines = [
+        json.dumps(day),
+        json.dumps(robot_scenario()),
+        "{not json",
+        "",
+        json.dumps({"sampler": "x", "scenario": day}),  # a record holding its scenario
+        json.dumps(robot_scenario(size=99)),
+    ]
+    path = write(tmp_path, "suite.jsonl", "\n".join(lines) + "\n")
+    out = ambiegen("evaluate", str(path), "--json")
+    assert out.returncode == 2, out.stderr
+    docs = [json.loads(line) for line in out.stdout.splitlines()]
+    assert [d["line"] for d in docs] == [1, 2, 3, 5, 6]
+    assert "error" in docs[2] and "malformed" in docs[2]["error"]
+    assert "elements[3].size" in docs[4]["error"]
+    assert docs[0]["problem"] == "thermostat" and docs[1]["problem"] == "robot"
+    assert docs[0]["f1"] == docs[3]["f1"] > 0 and docs[0]["profile"] == "replication"
+    one = json.loads(ambiegen("evaluate", str(write(tmp_path, "day.json", day)), "--json").stdout)
+    assert one["f1"] == docs[0]["f1"]
+    refined = ambiegen("evaluate", str(path), "--json", "--profile", "refined")
+    rdocs = [json.loads(line) for line in refined.stdout.splitlines()]
+    assert rdocs[0]["profile"] == "refined" and rdocs[0]["f1"] != docs[0]["f1"]
+    good = write(tmp_path, "good.jsonl", lines[0] + "\n" + lines[1] + "\n")
+    assert ambiegen("evaluate", str(good), "--json").returncode == 0
 
 
 def test_show_draws_scenarios_and_runs(tmp_path):
