@@ -157,9 +157,10 @@ def heat(setpoints: Sequence[float], durations_min: Sequence[float], models: Seq
 
 
 def schedule_of(problem: Any, scenario: Any) -> tuple[list[float], list[float], list[int]]:
-    """(setpoints, durations in minutes, room models) of a thermostat scenario."""
+    """(setpoints, durations in minutes, room models) of the schedule the surrogate scores (in the
+    replication profile, elements past the 24th hour are not part of the day)."""
     G, lengths = problem.codec.split(problem.codec.to_row(scenario))
-    m = int(lengths[0])
+    m = int(problem.scored_lengths(G, lengths)[0])
     return ([float(v) for v in G[0, :m, 0]], [float(v) for v in G[0, :m, 1]], [int(round(v)) for v in G[0, :m, 2]])
 
 
