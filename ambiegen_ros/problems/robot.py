@@ -1,17 +1,39 @@
 """Mobile-robot obstacle map (paper 5.2): walls on a 50 x 50 m grid; F1 = A* path length.
 
-Representation: one element per interior row ``y = 1..48`` (element ``i`` -> row ``y = i + 1``),
-each element one wall (``type`` horizontal/vertical, ``size`` in m, ``position`` = x of its centre),
-so R1 (one obstacle per element) holds by construction. A wall of size ``s`` covers the cells whose
-index differs from its centre by at most ``s / 2`` along its axis (inclusive, so an even size gives
-``s + 1`` cells), clipped to the interior; cells inside the start/goal keep-out squares are never
-walled, so R2 also holds by construction. The border is always wall. Grids are ``[y, x]``.
+Representation: element ``i`` describes row (the replication code's "level") ``y = i + 1``, one
+wall per element (``type`` horizontal/vertical, ``size`` in m, ``position`` = x of its centre), so
+R1 (one obstacle per element) holds by construction. The border is always wall. Grids are ``[y, x]``.
 
-Motion model (shared by ``astar`` and the batch planner): 8-connected, steps of 1 and sqrt(2)
-cells, a diagonal step needs both orthogonal neighbours free (``Config.diagonal``), and the robot
-stands on cell centres. ``inflate`` grows obstacles by the robot radius: a cell is blocked when the
-robot disc at its centre would overlap an occupied cell's square; with the paper's 0.5 m radius on
-a 1 m grid the disc only touches its neighbours, so nothing is inflated (one robot = one cell).
+Two fidelity profiles (``RobotConfig.profile``); each number below is a Config field whose default
+follows the profile, except the two rules marked *rule*, which follow the profile itself:
+
+============================  =====================================  =====================================
+                              ``refined`` (paper + project spec)     ``replication`` (authors' code)
+============================  =====================================  =====================================
+elements / position domain    48 (rows 1..48) / 1..48                1..49 (its generator draws 49, rows
+                                                                     1..49) / 1..49
+wall extent (*rule*)          cells with ``|c - centre| <= s / 2``   ``|c - centre| <= round(s/2) - 1``,
+                              (even ``s`` gives ``s + 1`` cells)     Python's round-half-to-even
+                                                                     (5 -> 3 cells, 9 -> 7, 15 -> 15)
+where walls may lie           the interior (``free_band`` 0)         ``0 < x, y < 46``: a free 3-cell band
+                                                                     along the top/right (``free_band`` 3)
+start / goal (R2)             never walled within ``keep_out`` 1     the cell itself (``keep_out`` 0); see
+                              (cell and its 8 neighbours)            below
+diagonal steps                both orthogonal neighbours free        always, also between two blocked
+                              (``diagonal`` "both_free")             cells (``diagonal`` "always")
+robot radius (*rule*)         blocks cells whose square the disc     blocks cells whose centre is within
+                              overlaps                               the radius of a wall cell's centre
+============================  =====================================  =====================================
+
+With the default 0.5 m radius on 1 m cells neither radius rule inflates anything (one robot = one
+cell). F1 is the optimal path length in both: the replication code's PythonRobotics A* (Euclidean
+heuristic, consistent with the 1 / sqrt(2) costs) returns an optimal path and scores the length of
+the polyline through it, which is that path's cost. No path = invalid, F1 = 0.
+
+The replication code may wall the robot's start cell (about 1 map in 10); its planner never checks
+the start, so the robot simply leaves it. Here the start cell stays free instead (``keep_out`` 0):
+the same lengths and verdicts (a shortest path never re-enters its start), but the map that is
+published and driven never puts the robot inside a wall.
 
 Speed: ``astar`` (heapq, Euclidean heuristic, the paper's planner) is kept for single maps (the
 path drawn in plots and sent to ROS). For a batch, F1 only needs the optimal *length*, which A*
@@ -26,8 +48,9 @@ from __future__ import annotations
 
 import heapq
 import math
+import dataclasses
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 from scipy import ndimage
@@ -36,19 +59,29 @@ from scipy.sparse.csgraph import dijkstra
 
 from ..core.attributes import Categorical, IntRange, ScenarioError
 from ..core.scenario import Scenario
-from .base import Budget, Evaluation, Problem
+from .base import DEFAULT_PROFILE, Budget, Evaluation, Problem, check_profile
 
 HORIZONTAL, VERTICAL = 0, 1
 DIAGONAL_RULES = ("both_free", "one_free", "always")
+INFLATION_RULES = ("overlap", "centre")  # how the robot radius blocks cells (see ``inflation_footprint``)
+INFLATION_RULE = {"refined": "overlap", "replication": "centre"}
+ENGINES = ("auto", "numba", "numpy")  # batch planner: numba when importable, else scipy
 NO_PATH = "no path from start to goal"
 
 # The 8 moves as (dy, dx), ordered by the flat-index offset dy * W + dx so CSR rows come out sorted.
 _MOVES = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
 
 
+# Defaults of the fields that differ by profile (``None`` in a Config resolves to these).
+PROFILE_DEFAULTS = {
+    "replication": {"keep_out": 0, "free_band": 3, "diagonal": "always"},
+    "refined": {"keep_out": 1, "free_band": 0, "diagonal": "both_free"},
+}
+
+
 @dataclass(frozen=True)
 class RobotConfig:
-    """Every number of the robot case study (defaults = the paper / its replication code)."""
+    """Every number of the robot case study; ``None`` fields take the profile's default."""
 
     alpha: float = 120.0  # MO constraint: a map is 'risky' when its path is longer [m]
     map_size: int = 50  # cells per side, border included (attribute domains assume 50)
@@ -56,22 +89,33 @@ class RobotConfig:
     start: tuple[int, int] = (1, 1)  # (x, y) cell
     goal: tuple[int, int] = (48, 48)  # (x, y) cell
     robot_radius: float = 0.5  # m; see ``inflate``
-    keep_out: int = 1  # Chebyshev radius (cells) around start/goal never walled (R2)
+    keep_out: int | None = None  # Chebyshev radius (cells) around start/goal never walled (R2)
+    free_band: int | None = None  # interior cells along the top and right borders never walled
     type_p_stay: float = 0.5  # Markov chain over wall type: P(next type = this type)
     sampling: str = "markov"  # "markov" (type by the chain) | "uniform"
-    diagonal: str = "both_free"  # diagonal step needs: both_free | one_free | always
+    diagonal: str | None = None  # diagonal step needs: both_free | one_free | always
+    engine: str = "auto"  # batch planner: "auto" (numba if importable) | "numba" | "numpy" (scipy)
+    profile: str = DEFAULT_PROFILE  # replication | refined (see the module docstring)
 
     def __post_init__(self):
+        check_profile(self.profile)
+        for name, default in PROFILE_DEFAULTS[self.profile].items():
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, default)
         if self.sampling not in ("markov", "uniform"):
             raise ScenarioError("config.sampling", f"unknown sampling {self.sampling!r}", "markov|uniform")
         if self.diagonal not in DIAGONAL_RULES:
             raise ScenarioError("config.diagonal", f"unknown rule {self.diagonal!r}", "|".join(DIAGONAL_RULES))
+        if self.engine not in ENGINES:
+            raise ScenarioError("config.engine", f"unknown engine {self.engine!r}", "|".join(ENGINES))
         if not self.resolution > 0:
             raise ScenarioError("config.resolution", "must be positive")
         if self.robot_radius < 0:
             raise ScenarioError("config.robot_radius", "must be >= 0")
         if self.keep_out < 0:
             raise ScenarioError("config.keep_out", "must be >= 0")
+        if not 0 <= self.free_band <= self.map_size - 3:
+            raise ScenarioError("config.free_band", "must leave interior cells for walls", f"0..{self.map_size - 3}")
         if not 0.0 <= self.type_p_stay <= 1.0:
             raise ScenarioError("config.type_p_stay", "must be a probability", "[0, 1]")
         # YAML/JSON give lists; keep the dataclass hashable and the cells integral.
@@ -82,6 +126,16 @@ class RobotConfig:
             if not (0 < x < self.map_size - 1 and 0 < y < self.map_size - 1):
                 raise ScenarioError(f"config.{name}", f"({x}, {y}) is not an interior cell",
                                     f"1..{self.map_size - 2}")
+
+    def for_profile(self, profile: str) -> "RobotConfig":
+        """This config under another profile: fields still at this profile's default follow the new one.
+
+        (``dataclasses.replace(config, profile=...)`` alone would keep the old profile's resolved
+        values, e.g. a refined config with corner-cutting A*.)
+        """
+        follow = {name: None for name, default in PROFILE_DEFAULTS[self.profile].items()
+                  if getattr(self, name) == default}
+        return dataclasses.replace(self, profile=check_profile(profile), **follow)
 
 
 # --- grids ---------------------------------------------------------------------------------
@@ -95,59 +149,83 @@ def keep_out_mask(config: RobotConfig) -> np.ndarray:
     return mask
 
 
+def wall_half_extent(size: np.ndarray, profile: str) -> np.ndarray:
+    """Cells a wall of ``size`` covers on each side of its centre (*rule* of the profile).
+
+    refined: every cell within s/2 (``floor(s / 2)``: an even size gives s + 1 cells);
+    replication: ``round(s / 2) - 1`` with round-half-to-even (``np.rint``, like Python's round).
+    """
+    size = np.asarray(size, dtype=np.int64)
+    if profile == "refined":
+        return size // 2
+    return np.rint(size / 2).astype(np.int64) - 1
+
+
+def wall_zone(config: RobotConfig) -> np.ndarray:
+    """(H, W) True where wall cells may lie: the interior minus the free band and keep-out squares."""
+    n = config.map_size
+    last = n - 2 - config.free_band  # highest x and y index a wall cell may have
+    zone = np.zeros((n, n), dtype=bool)
+    zone[1:last + 1, 1:last + 1] = True
+    return zone & ~keep_out_mask(config)
+
+
 def build_grids(G: np.ndarray, lengths: np.ndarray, config: RobotConfig) -> np.ndarray:
-    """Occupancy ``(P, H, W)`` bool ``[y, x]`` of a batch: border + clipped walls, R2 keep-out."""
+    """Occupancy ``(P, H, W)`` bool ``[y, x]`` of a batch: border + walls clipped to ``wall_zone``."""
     G = np.asarray(G, dtype=float)
     P, m_max = G.shape[0], G.shape[1]
     n = config.map_size
     lengths = np.asarray(lengths).reshape(-1)
     used = np.arange(m_max)[None, :] < lengths[:, None]
     kind = np.rint(G[:, :, 0]).astype(np.int64)
-    size = np.rint(G[:, :, 1]).astype(np.int64)
+    half = wall_half_extent(np.rint(G[:, :, 1]), config.profile)
     pos = np.rint(G[:, :, 2]).astype(np.int64)
     rows = np.arange(m_max) + 1  # element i lies on row y = i + 1
     axis = np.arange(n)
-    # Cells within s/2 of the centre along the axis: 2 |c - centre| <= s (integer arithmetic).
     horiz = used & (kind == HORIZONTAL)
-    h_cells = horiz[:, :, None] & (2 * np.abs(axis[None, None, :] - pos[:, :, None]) <= size[:, :, None])
+    h_cells = horiz[:, :, None] & (np.abs(axis[None, None, :] - pos[:, :, None]) <= half[:, :, None])
     vert = used & (kind == VERTICAL)
-    v_cells = vert[:, :, None] & (2 * np.abs(axis[None, None, :] - rows[None, :, None]) <= size[:, :, None])
+    v_cells = vert[:, :, None] & (np.abs(axis[None, None, :] - rows[None, :, None]) <= half[:, :, None])
     v_at = vert[:, :, None] & (axis[None, None, :] == pos[:, :, None])  # one-hot column x
     grid = np.zeros((P, n, n), dtype=bool)
     n_rows = min(m_max, n - 2)
     grid[:, 1:1 + n_rows, :] = h_cells[:, :n_rows, :]
     # Vertical walls: grid[p, y, x] |= any_i v_cells[p, i, y] & v_at[p, i, x] (a batched matmul).
     grid |= np.matmul(v_cells.transpose(0, 2, 1).astype(np.float32), v_at.astype(np.float32)) > 0
-    interior = np.zeros((n, n), dtype=bool)
-    interior[1:-1, 1:-1] = True
-    grid &= (interior & ~keep_out_mask(config))[None]
+    grid &= wall_zone(config)[None]
     grid[:, 0, :] = grid[:, -1, :] = grid[:, :, 0] = grid[:, :, -1] = True
     return grid
 
 
-def inflation_footprint(radius: float, resolution: float) -> np.ndarray:
-    """Cells a robot disc of ``radius`` at a cell centre overlaps (touching does not count).
+def inflation_footprint(radius: float, resolution: float, rule: str = "overlap") -> np.ndarray:
+    """Offsets of the cells a robot of ``radius`` standing on a cell centre is blocked by.
 
-    The distance from the centre to the square of the cell at offset (dx, dy) is
-    ``res * hypot(max(|dx| - 0.5, 0), max(|dy| - 0.5, 0))``; the cell is hit when it is < radius.
+    ``overlap`` (refined): the disc overlaps the cell's square (touching does not count); the
+    distance to the square at offset (dx, dy) is ``res * hypot(max(|dx| - 0.5, 0), max(|dy| - 0.5, 0))``
+    and must be < radius. ``centre`` (replication, the PythonRobotics obstacle map): the cell's
+    centre is within the radius, ``res * hypot(dx, dy) <= radius``.
     """
+    if rule not in INFLATION_RULES:
+        raise ScenarioError("inflation", f"unknown rule {rule!r}", "|".join(INFLATION_RULES))
     k = max(0, math.ceil(radius / resolution + 0.5))
     d = np.abs(np.arange(-k, k + 1))
-    gap = np.maximum(d - 0.5, 0.0)
-    dist = resolution * np.hypot(gap[:, None], gap[None, :])
-    foot = dist < radius
+    if rule == "overlap":
+        gap = np.maximum(d - 0.5, 0.0)
+        foot = resolution * np.hypot(gap[:, None], gap[None, :]) < radius
+    else:
+        foot = resolution * np.hypot(d[:, None], d[None, :]) <= radius
     foot[k, k] = True
     return foot
 
 
-def inflate(occupied: np.ndarray, radius: float, resolution: float = 1.0) -> np.ndarray:
+def inflate(occupied: np.ndarray, radius: float, resolution: float = 1.0, rule: str = "overlap") -> np.ndarray:
     """Grow obstacles by the robot radius so the planner can treat the robot as a point.
 
     Works on one ``(H, W)`` grid or a ``(P, H, W)`` batch. A larger radius blocks cells next to
     walls (and may leave start/goal inside an inflated border: then there is no path).
     """
     occupied = np.asarray(occupied, dtype=bool)
-    foot = inflation_footprint(radius, resolution)
+    foot = inflation_footprint(radius, resolution, rule)
     if foot.sum() == 1:
         return occupied.copy()
     structure = foot if occupied.ndim == 2 else foot[None]
@@ -241,18 +319,8 @@ def grid_graph(occupied: np.ndarray, diagonal: str = "both_free") -> csr_matrix:
     return csr_matrix((costs[ks], indices, indptr), shape=(n_nodes, n_nodes))
 
 
-def batch_path_lengths(
-    occupied: np.ndarray,
-    start: Sequence[int],
-    goal: Sequence[int],
-    diagonal: str = "both_free",
-    chunk: int = 32,
-) -> np.ndarray:
-    """Optimal path length (cells) per map of a ``(P, H, W)`` batch; ``inf`` where unreachable.
-
-    Same motion model as ``astar``; one Dijkstra call per ``chunk`` maps (bounds memory).
-    """
-    occupied = np.asarray(occupied, dtype=bool)
+def _scipy_lengths(occupied: np.ndarray, start, goal, diagonal: str, chunk: int) -> np.ndarray:
+    """``batch_path_lengths`` with scipy: one Dijkstra call per ``chunk`` maps (bounds memory)."""
     P, H, W = occupied.shape
     out = np.full(P, np.inf)
     sx, sy = int(start[0]), int(start[1])
@@ -267,6 +335,133 @@ def batch_path_lengths(
         dist = dijkstra(grid_graph(block, diagonal), directed=True,
                         indices=base[reach] + sy * W + sx, min_only=True)
         out[lo:lo + n][reach] = dist[base[reach] + gy * W + gx]
+    return out
+
+
+def _dijkstra_maps(occupied, sx, sy, gx, gy, rule, out):
+    """Dijkstra per map with a binary heap, stopping at the goal (compiled by numba).
+
+    Same motion model and the same floating-point sums as ``grid_graph`` + scipy (a node's
+    distance is the smallest ``dist[u] + cost`` over its settled neighbours), so the lengths are
+    bit-identical. ``rule``: 0 both_free, 1 one_free, 2 always.
+    """
+    P, H, W = occupied.shape
+    n = H * W
+    sqrt2 = np.sqrt(2.0)
+    dist = np.empty(n)
+    done = np.empty(n, dtype=np.bool_)
+    cap = 8 * n + 1  # a push needs a strict improvement: at most one per edge
+    keys = np.empty(cap)
+    nodes = np.empty(cap, dtype=np.int64)
+    for p in range(P):
+        out[p] = np.inf
+        if occupied[p, sy, sx] or occupied[p, gy, gx]:
+            continue
+        dist[:] = np.inf
+        done[:] = False
+        goal = gy * W + gx
+        dist[sy * W + sx] = 0.0
+        keys[0] = 0.0
+        nodes[0] = sy * W + sx
+        size = 1
+        while size > 0:
+            d = keys[0]
+            v = nodes[0]
+            size -= 1
+            if size > 0:  # move the last entry to the root and sift it down
+                key, node = keys[size], nodes[size]
+                i = 0
+                while True:
+                    c = 2 * i + 1
+                    if c >= size:
+                        break
+                    if c + 1 < size and keys[c + 1] < keys[c]:
+                        c += 1
+                    if keys[c] >= key:
+                        break
+                    keys[i], nodes[i] = keys[c], nodes[c]
+                    i = c
+                keys[i], nodes[i] = key, node
+            if done[v]:
+                continue
+            done[v] = True
+            if v == goal:
+                out[p] = d
+                break
+            y, x = v // W, v % W
+            for dy in range(-1, 2):
+                for dx in range(-1, 2):
+                    if dy == 0 and dx == 0:
+                        continue
+                    ny, nx = y + dy, x + dx
+                    if ny < 0 or ny >= H or nx < 0 or nx >= W or occupied[p, ny, nx]:
+                        continue
+                    u = ny * W + nx
+                    if done[u]:
+                        continue
+                    cost = 1.0
+                    if dy != 0 and dx != 0:
+                        cost = sqrt2
+                        side_x = not occupied[p, y, nx]
+                        side_y = not occupied[p, ny, x]
+                        if rule == 0 and not (side_x and side_y):
+                            continue
+                        if rule == 1 and not (side_x or side_y):
+                            continue
+                    nd = d + cost
+                    if nd < dist[u]:
+                        dist[u] = nd
+                        i = size  # push and sift up
+                        size += 1
+                        while i > 0:
+                            parent = (i - 1) // 2
+                            if keys[parent] <= nd:
+                                break
+                            keys[i], nodes[i] = keys[parent], nodes[parent]
+                            i = parent
+                        keys[i], nodes[i] = nd, u
+
+
+_KERNEL: Any = None  # the numba-compiled ``_dijkstra_maps``, or False when numba is unavailable
+
+
+def _kernel():
+    """Compile the planner on first use (cached on disk by numba); False without numba."""
+    global _KERNEL
+    if _KERNEL is None:
+        try:
+            import numba
+        except ImportError:
+            _KERNEL = False
+        else:
+            _KERNEL = numba.njit(cache=True)(_dijkstra_maps)
+    return _KERNEL
+
+
+def batch_path_lengths(
+    occupied: np.ndarray,
+    start: Sequence[int],
+    goal: Sequence[int],
+    diagonal: str = "both_free",
+    chunk: int = 32,
+    engine: str = "auto",
+) -> np.ndarray:
+    """Optimal path length (cells) per map of a ``(P, H, W)`` batch; ``inf`` where unreachable.
+
+    Same motion model as ``astar``. ``engine``: "numba" (a compiled Dijkstra per map that stops at
+    the goal), "numpy" (scipy on block-diagonal graphs of ``chunk`` maps) or "auto" (numba when
+    importable); both give the same floats.
+    """
+    occupied = np.ascontiguousarray(occupied, dtype=bool)
+    if engine not in ENGINES:
+        raise ScenarioError("engine", f"unknown engine {engine!r}", "|".join(ENGINES))
+    kernel = _kernel() if engine != "numpy" else False
+    if engine == "numba" and not kernel:
+        raise ImportError("numba is not installed; use engine='numpy'")
+    if not kernel:
+        return _scipy_lengths(occupied, start, goal, diagonal, chunk)
+    out = np.empty(len(occupied))
+    kernel(occupied, int(start[0]), int(start[1]), int(goal[0]), int(goal[1]), DIAGONAL_RULES.index(diagonal), out)
     return out
 
 
@@ -297,30 +492,52 @@ class RobotMap:
         return [self.to_metres(c) for c in self.path]
 
 
+# Attribute domains and lengths per profile. The replication code's generator draws one element
+# per level 1..49 (1 + (map_size - 2)) with positions 1..49; it scores any number of levels (a
+# missing level is an empty row), so shorter scenarios, like the refined profile's 48, are accepted.
+_TYPE = Categorical("type", ("horizontal", "vertical"))
+_SIZE = IntRange("size", 5, 15, 1, tolerance=2, unit="m")
+REFINED_LAYOUT = ((_TYPE, _SIZE, IntRange("position", 1, 48, 1, tolerance=2, unit="m")), 48, 48)
+REPLICATION_LAYOUT = ((_TYPE, _SIZE, IntRange("position", 1, 49, 1, tolerance=2, unit="m")), 1, 49)
+
+
 class RobotProblem(Problem):
-    """Walls in a room; the longer the shortest route, the harder the map for the robot."""
+    """Walls in a room; the longer the shortest route, the harder the map for the robot.
+
+    The class attributes are the refined layout; an instance takes its profile's from ``layout()``.
+    """
 
     name = "robot"
-    attributes = (
-        Categorical("type", ("horizontal", "vertical")),
-        IntRange("size", 5, 15, 1, tolerance=2, unit="m"),
-        IntRange("position", 1, 48, 1, tolerance=2, unit="m"),
-    )
-    m_min = 48
-    m_max = 48
+    attributes, m_min, m_max = REFINED_LAYOUT
     f1_label = "A* path length [m]"
     paper_budget = Budget(100, 50, 20000)
     Config = RobotConfig
 
     def __init__(self, config=None, **overrides):
+        # Build the Config once from all given values, so profile-dependent defaults resolve for
+        # the profile asked for (Config() followed by replace(profile=...) would not).
+        if config is None:
+            config = {}
+        if isinstance(config, dict):
+            config, overrides = {**config, **overrides}, {}
+        elif overrides.get("profile", config.profile) != config.profile:
+            config = config.for_profile(overrides.pop("profile"))
         super().__init__(config, **overrides)
-        if self.config.map_size != self.m_max + 2:
+        rows = self.m_max + (2 if self.profile == "refined" else 1)  # replication: levels up to the top border
+        if self.config.map_size != rows:
             raise ScenarioError("config.map_size", f"{self.config.map_size} does not match one row per element",
-                                str(self.m_max + 2))
+                                str(rows))
+
+    def layout(self):
+        return REFINED_LAYOUT if self.profile == "refined" else REPLICATION_LAYOUT
 
     # --- sampling ----------------------------------------------------------------------
     def sample(self, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-        """Fixed length 48; wall type by a 2-state Markov chain (or uniform), size/position uniform."""
+        """Fixed length m_max (48 | 49); type by a 2-state Markov chain (or uniform), size/position uniform.
+
+        With P(stay) = 0.5 (both profiles) the chain draws every type independently, as the
+        replication code's generator does.
+        """
         m = self.m_max
         G = np.zeros((n, m, len(self.attributes)))
         if self.config.sampling == "markov":
@@ -337,13 +554,18 @@ class RobotProblem(Problem):
     def planning_grids(self, G: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Raw occupancy and the radius-inflated grid the planners use."""
         grids = build_grids(G, lengths, self.config)
-        return grids, inflate(grids, self.config.robot_radius, self.config.resolution)
+        planning = inflate(grids, self.config.robot_radius, self.config.resolution, INFLATION_RULE[self.profile])
+        if self.profile == "replication":  # its planner never checks the start: the robot leaves it
+            sx, sy = self.config.start
+            planning[:, sy, sx] = False
+        return grids, planning
 
     def evaluate(self, G: np.ndarray, lengths: np.ndarray) -> Evaluation:
         G = np.asarray(G, dtype=float)
         lengths = np.asarray(lengths, dtype=int).reshape(-1)
         grids, planning = self.planning_grids(G, lengths)
-        cells = batch_path_lengths(planning, self.config.start, self.config.goal, self.config.diagonal)
+        cells = batch_path_lengths(planning, self.config.start, self.config.goal, self.config.diagonal,
+                                   engine=self.config.engine)
         in_domain = self.codec.in_domain(G, lengths)
         valid = np.isfinite(cells) & in_domain
         f1 = np.where(valid, cells * self.config.resolution, 0.0)

@@ -1,4 +1,8 @@
-"""Robot case study: wall geometry, R2 keep-out, planner correctness and agreement, plotting."""
+"""Robot case study, refined profile: wall geometry, R2 keep-out, planners, plotting.
+
+Every problem here is built with ``profile="refined"`` (today's model: the paper's rules and the
+project spec); the replication profile has its own tests in ``test_robot_replication.py``.
+"""
 from __future__ import annotations
 
 import heapq
@@ -26,9 +30,16 @@ START, GOAL = (1, 1), (48, 48)
 EMPTY_LENGTH = 47 * math.sqrt(2)
 
 
+def refined(config=None, **overrides) -> RobotProblem:
+    """A robot problem in the refined profile."""
+    if config is not None:
+        return RobotProblem({**config, "profile": "refined"}, **overrides)
+    return RobotProblem(profile="refined", **overrides)
+
+
 @pytest.fixture(scope="module")
 def problem():
-    return RobotProblem()
+    return refined()
 
 
 def empty_grid(n: int = N) -> np.ndarray:
@@ -141,7 +152,7 @@ elements_strategy = st.lists(
 @settings(max_examples=60, deadline=None)
 @given(elements_strategy)
 def test_walls_match_naive_and_never_cover_start_goal(elements):
-    problem = RobotProblem()
+    problem = refined()
     G, lengths = genome(elements)
     grid = build_grids(G, lengths, problem.config)[0]
     np.testing.assert_array_equal(grid, naive_grid(elements, problem.config))
@@ -160,7 +171,7 @@ def test_walls_match_naive_and_never_cover_start_goal(elements):
 
 
 def test_keep_out_follows_config():
-    wide = RobotProblem(keep_out=3)
+    wide = refined(keep_out=3)
     elements = [(0, 15, 5)] * 48  # every row walled over x 0..12
     grid = build_grids(*genome(elements), wide.config)[0]
     assert not grid[1:5, 1:5].any() and grid[5, 1:13].all() and grid[1:5, 5:13].all()
@@ -192,10 +203,11 @@ def random_maps(count, seed):
     return maps
 
 
+@pytest.mark.parametrize("engine", ["numba", "numpy"])
 @pytest.mark.parametrize("diagonal", ["both_free", "one_free", "always"])
-def test_astar_and_batch_agree_with_reference_dijkstra(diagonal):
+def test_astar_and_batch_agree_with_reference_dijkstra(diagonal, engine):
     maps = random_maps(50, seed={"both_free": 1, "one_free": 2, "always": 3}[diagonal])
-    batch = batch_path_lengths(np.stack(maps), (1, 1), (22, 22), diagonal)
+    batch = batch_path_lengths(np.stack(maps), (1, 1), (22, 22), diagonal, engine=engine)
     reach = 0
     for grid, fast in zip(maps, batch):
         ref = reference_dijkstra(grid, (1, 1), (22, 22), diagonal)
@@ -222,6 +234,17 @@ def test_batch_f1_equals_astar_on_sampled_maps(problem):
             check_path(grids[i], path, length, START, GOAL)
         else:
             assert math.isinf(length) and ev.f1[i] == 0 and ev.reasons[i] == NO_PATH
+
+
+@pytest.mark.parametrize("diagonal", ["both_free", "one_free", "always"])
+def test_batch_engines_give_identical_floats(problem, diagonal):
+    """The compiled planner and scipy sum the same steps: F1 must not depend on the engine."""
+    G, lengths = problem.sample(300, np.random.default_rng(13))
+    grids = build_grids(G, lengths, problem.config)
+    fast = batch_path_lengths(grids, START, GOAL, diagonal, engine="numba")
+    slow = batch_path_lengths(grids, START, GOAL, diagonal, engine="numpy", chunk=17)
+    np.testing.assert_array_equal(fast, slow)
+    assert 0 < np.isfinite(fast).sum() < 300
 
 
 def test_corner_cutting_forbidden():
@@ -260,9 +283,9 @@ def test_inflation_by_radius():
 
 
 def test_larger_radius_lengthens_or_blocks_paths():
-    G, lengths = RobotProblem().sample(30, np.random.default_rng(11))
-    base = RobotProblem().evaluate(G, lengths)
-    wide = RobotProblem(robot_radius=0.6, keep_out=2, start=(2, 2), goal=(47, 47)).evaluate(G, lengths)
+    G, lengths = refined().sample(30, np.random.default_rng(11))
+    base = refined().evaluate(G, lengths)
+    wide = refined(robot_radius=0.6, keep_out=2, start=(2, 2), goal=(47, 47)).evaluate(G, lengths)
     both = base.valid & wide.valid
     assert wide.valid.sum() < base.valid.sum()
     assert np.all(wide.f1[both] >= base.f1[both] - 2 * math.sqrt(2) - 1e-9)
@@ -293,7 +316,7 @@ def test_out_of_domain_genome_is_invalid(problem):
 
 @pytest.mark.parametrize("sampling", ["markov", "uniform"])
 def test_sampled_genomes_in_domain(sampling):
-    problem = RobotProblem(sampling=sampling)
+    problem = refined(sampling=sampling)
     G, lengths = problem.sample(200, np.random.default_rng(5))
     assert G.shape == (200, 48, 3) and np.all(lengths == 48)
     assert problem.codec.in_domain(G, lengths).all()
@@ -304,11 +327,11 @@ def test_sampled_genomes_in_domain(sampling):
 
 def test_markov_chain_stay_probability():
     rng = np.random.default_rng(9)
-    types = RobotProblem(type_p_stay=1.0).sample(50, rng)[0][:, :, 0]
+    types = refined(type_p_stay=1.0).sample(50, rng)[0][:, :, 0]
     assert np.all(types == types[:, :1]) and 0 < types[:, 0].mean() < 1
-    types = RobotProblem(type_p_stay=0.0).sample(50, rng)[0][:, :, 0]
+    types = refined(type_p_stay=0.0).sample(50, rng)[0][:, :, 0]
     assert np.all(types[:, 1:] != types[:, :-1])
-    types = RobotProblem(type_p_stay=0.8).sample(400, rng)[0][:, :, 0]
+    types = refined(type_p_stay=0.8).sample(400, rng)[0][:, :, 0]
     assert np.mean(types[:, 1:] == types[:, :-1]) == pytest.approx(0.8, abs=0.02)
 
 
@@ -324,15 +347,15 @@ def test_environment_units_and_json_round_trip(problem):
 
 
 def test_config_checks():
-    assert RobotProblem({"start": [2, 2]}).config.start == (2, 2)
+    assert refined({"start": [2, 2]}).config.start == (2, 2)
     with pytest.raises(ScenarioError, match="sampling"):
-        RobotProblem(sampling="perlin")
+        refined(sampling="perlin")
     with pytest.raises(ScenarioError, match="diagonal"):
-        RobotProblem(diagonal="sometimes")
+        refined(diagonal="sometimes")
     with pytest.raises(ScenarioError, match="goal"):
-        RobotProblem(goal=(49, 49))
+        refined(goal=(49, 49))
     with pytest.raises(ScenarioError, match="map_size"):
-        RobotProblem(map_size=60)
+        refined(map_size=60)
 
 
 def test_plot_renders_png(problem, tmp_path):
