@@ -29,15 +29,16 @@ it is distinct when its Jaccard distance to every earlier failure of the run is 
 from __future__ import annotations
 
 import argparse
-import concurrent.futures as cf
 import csv
 import dataclasses
 import json
 import math
 import multiprocessing
 import os
+import signal
 import sys
 import time
+import traceback
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -286,6 +287,19 @@ def run_task(task: dict[str, Any]) -> dict[str, Any]:
     record["finished"] = datetime.now(timezone.utc).isoformat(timespec="seconds")
     write_atomic(Path(task["path"]), json.dumps(record, indent=1) + "\n")
     return record
+
+
+def _run_task_guarded(task: dict[str, Any]) -> dict[str, Any]:
+    """A run that raises is reported (and retried by --resume) instead of stopping the others."""
+    try:
+        return run_task(task)
+    except Exception:
+        return {"algorithm": task["algorithm"], "run": task["run"], "error": traceback.format_exc()}
+
+
+def _ignore_sigint() -> None:
+    """Pool workers leave Ctrl-C to the parent, which stops them (no half-written results)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _surrogate_run(problem, settings) -> dict[str, Any]:
@@ -595,30 +609,42 @@ def run_experiment(spec: ExperimentSpec, out: Path, jobs: int | None = None, res
     bar = ExperimentProgress(len(records) + len(tasks), len(records), enabled=progress,
                              label=f"{config['problem']} ({config['profile']}) ", run_seconds=run_seconds, jobs=jobs)
     bar.update()
+    errors: list[dict[str, Any]] = []
+
+    def take(rec: dict[str, Any]) -> None:
+        if "error" in rec:
+            errors.append(rec)
+            print(f"\nambiegen experiment: run {rec['algorithm']}-{rec['run']:03d} failed (--resume retries it):\n"
+                  f"{rec['error']}", file=sys.stderr)
+        else:
+            records.append(rec)
+        bar.update(len(records) + len(errors))
+
     try:
         if jobs == 1 or len(tasks) <= 1:
             for task in tasks:
-                records.append(run_task(task))
-                bar.update(len(records))
+                take(_run_task_guarded(task))
         elif tasks:
-            ctx = multiprocessing.get_context("spawn")
-            with cf.ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=ctx) as pool:
-                pending = {pool.submit(run_task, task) for task in tasks}
-                try:
-                    while pending:
-                        finished, pending = cf.wait(pending, timeout=1.0, return_when=cf.FIRST_COMPLETED)
-                        for fut in finished:
-                            records.append(fut.result())
-                        bar.update(len(records))
-                except BaseException:
-                    for fut in pending:
-                        fut.cancel()
-                    raise
+            pool = multiprocessing.get_context("spawn").Pool(min(jobs, len(tasks)), initializer=_ignore_sigint)
+            try:
+                results = pool.imap_unordered(_run_task_guarded, tasks)
+                for _ in tasks:
+                    while True:
+                        try:
+                            rec = results.next(timeout=1.0)
+                            break
+                        except multiprocessing.TimeoutError:
+                            bar.update()
+                    take(rec)
+                pool.close()
+            finally:
+                pool.terminate()  # on Ctrl-C or an error: the runs in flight stop (their files were never written)
+                pool.join()
     finally:
         bar.close()
         if records:
             summarize(out, config, records)
-    return {"config": config, "records": records}
+    return {"config": config, "records": records, "errors": errors}
 
 
 # --- tables, statistics, report ----------------------------------------------------------------
@@ -910,7 +936,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
                                 progress=False if args.quiet else None)
     except ExperimentError as exc:
         raise BadInput(str(exc))
-    config, records = result["config"], result["records"]
+    config, records, errors = result["config"], result["records"], result["errors"]
     print(f"{config['problem']} ({config['profile']} profile): {len(records)} runs -> {args.out}")
     for alg in config["algorithms"]:
         rs = [r for r in records if r["algorithm"] == alg]
@@ -922,6 +948,9 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             line += f", diversity {_median([r['diversity'] for r in rs]):.3f}"
         print(line)
     print(f"  report: {Path(args.out) / 'report.md'}")
+    if errors:
+        print(f"ambiegen experiment: {len(errors)} run(s) failed; see above; --resume re-runs them", file=sys.stderr)
+        return 1
     return 0
 
 

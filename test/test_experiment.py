@@ -172,3 +172,23 @@ def test_full_model_experiment_on_the_vehicle_counts_failures(tmp_path):
     report = (out / "report.md").read_text()
     assert "RQ3" in report and "profile `replication`" in report and "out_of_lane" in report
     assert (out / "failures.png").exists()
+
+
+def test_a_failing_run_is_reported_and_the_others_finish(tmp_path, monkeypatch):
+    import ambiegen_ros.experiment as experiment
+
+    real = experiment.run_task
+
+    def flaky(task):
+        if (task["algorithm"], task["run"]) == ("random", 0):
+            raise RuntimeError("simulator crashed")
+        return real(task)
+
+    monkeypatch.setattr(experiment, "run_task", flaky)
+    spec = ExperimentSpec(problem="thermostat", algorithms=("ga", "random"), runs=1, seed=2, evaluations=300)
+    result = run_experiment(spec, tmp_path / "exp", jobs=1, progress=False)
+    assert [(e["algorithm"], e["run"]) for e in result["errors"]] == [("random", 0)]
+    assert "simulator crashed" in result["errors"][0]["error"]
+    assert [r["algorithm"] for r in result["records"]] == ["ga"]
+    assert not (tmp_path / "exp" / "runs" / "random-000.json").exists()  # --resume will run it
+    assert [r["algorithm"] for r in read_csv(tmp_path / "exp" / "results.csv")] == ["ga"]
