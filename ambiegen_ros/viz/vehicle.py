@@ -20,8 +20,9 @@ def _left_normals(nodes: np.ndarray) -> np.ndarray:
 def plot_scenario(problem: Any, scenario: Any, ax=None, title: str | None = None):
     """Draw one scenario of a ``VehicleProblem``; returns the axes (a new figure when ``ax`` is None).
 
-    The centre line is the road's middle (dashed, the surrogate's reference); the two outer edges
-    are one ``lane_width`` to each side, i.e. two lanes. Axes are map metres.
+    The centre line is the road's middle (dashed, the surrogate's reference: in the replication
+    profile the polyline of its ~8 m nodes); the two outer edges are one ``lane_width`` to each
+    side, i.e. two lanes. Axes are map metres.
     """
     road = problem.environment(scenario)
     if ax is None:
@@ -47,7 +48,9 @@ def plot_scenario(problem: Any, scenario: Any, ax=None, title: str | None = None
         worst = int(np.argmax(np.abs(road.deviations)))
         ax.plot(*road.path[worst], "x", color="tab:red", ms=11, mew=2.5,
                 label=f"max |d| = {abs(road.deviations[worst]):.2f} m")
-    if road.valid:
+    if road.valid and not getattr(road, "car_path_simple", True):
+        summary = f"F1 = 0: the car's path crosses itself (max deviation {road.max_deviation:.2f} m)"
+    elif road.valid:
         summary = f"F1 = max deviation {road.max_deviation:.2f} m (road {road.length:.0f} m)"
     else:
         summary = f"invalid ({road.reason}): F1 = 0"

@@ -1,5 +1,6 @@
-"""Vehicle (lane keeping) case study: road geometry, spline == splprep, validity rules, the car's
-sign convention, windowed == global nearest point, both engines, sampler, plot."""
+"""Vehicle (lane keeping) case study, refined profile (paper eqs. 10-13 car, 5 m spine, competition
+rules): road geometry, spline == splprep, validity rules, the car's sign convention, windowed ==
+global nearest point, both engines, sampler, plot. The replication profile: test_vehicle_replication.py."""
 from __future__ import annotations
 
 import math
@@ -25,6 +26,15 @@ from ambiegen_ros.problems.vehicle import (
 HAS_NUMBA = bool(_kernels())
 
 
+def refined(**overrides) -> VehicleProblem:
+    """A refined-profile problem (built from a dict so that profile-dependent defaults resolve)."""
+    return VehicleProblem({"profile": "refined", **overrides})
+
+
+def refined_config(**overrides) -> VehicleConfig:
+    return VehicleConfig(profile="refined", **overrides)
+
+
 def road(*segments) -> Scenario:
     """Elements from ("straight", length) / ("left"|"right", angle) pairs; unused attrs = 5."""
     elements = []
@@ -43,7 +53,7 @@ def split_flat(flat, counts):
 
 @pytest.fixture(scope="module")
 def problem() -> VehicleProblem:
-    return VehicleProblem()
+    return refined()
 
 
 @pytest.fixture(scope="module")
@@ -67,21 +77,24 @@ def test_declared_shape(problem):
     assert (problem.m_min, problem.m_max) == (1, 20)
     assert problem.paper_budget.population == 500 and problem.paper_budget.evaluations == 100000
     assert problem.alpha == 10.0
-    assert get_problem("vehicle").name == "vehicle"
+    assert problem.profile == "refined" and problem.config.v0 == 7.0 and problem.config.turn_radius == 20.0
+    assert get_problem("vehicle", {"profile": "refined"}).config == problem.config
 
 
 def test_config_from_dict_and_errors():
-    p = VehicleProblem({"p_from_turn": [0.5, 0.25, 0.25], "start": [90, 90]})
+    p = refined(p_from_turn=[0.5, 0.25, 0.25], start=[90, 90])
     assert p.config.p_from_turn == (0.5, 0.25, 0.25) and p.config.start == (90.0, 90.0)
     hash(p.config)  # frozen and hashable after list -> tuple
     with pytest.raises(ScenarioError, match="p_from_straight"):
-        VehicleConfig(p_from_straight=(0.5, 0.5, 0.5))
+        refined_config(p_from_straight=(0.5, 0.5, 0.5))
     with pytest.raises(ScenarioError, match="sampling"):
-        VehicleConfig(sampling="grid")
+        refined_config(sampling="grid")
     with pytest.raises(ScenarioError, match="window_back"):
-        VehicleConfig(window_back=0)
+        refined_config(window_back=0)
     with pytest.raises(ScenarioError, match="unknown vehicle parameter"):
         VehicleProblem({"speed": 3})
+    with pytest.raises(ScenarioError, match="profile"):
+        VehicleConfig(profile="paper")
 
 
 # --- road geometry ---------------------------------------------------------------------------------------
@@ -144,7 +157,7 @@ def test_self_intersecting_road(problem):
 def test_too_sharp_road():
     # many consecutive 85 degree turns are never too sharp on radius-20 arcs (they self-intersect
     # instead); a tighter arc radius breaks the rule and the reason names the radius
-    p = VehicleProblem(turn_radius=10.0)
+    p = refined(turn_radius=10.0)
     sc = road(("straight", 20), ("left", 85), ("right", 85), ("left", 85), ("straight", 10))
     row = evaluate_one(p, sc)
     assert not row["valid"] and row["reason"].startswith("too sharp: min radius")
@@ -256,8 +269,8 @@ def test_window_size_does_not_matter_on_sampled_roads(problem, sampled):
     nodes = split_flat(sampled["nodes"], sampled["n_nodes"])
     flat = np.concatenate([nodes[i] for i in v])
     args = (flat, sampled["n_nodes"][v], sampled["length"][v])
-    small = simulate(*args, VehicleConfig(window_back=1, window_ahead=1))
-    wide = simulate(*args, VehicleConfig(window_back=12, window_ahead=25))
+    small = simulate(*args, refined_config(window_back=1, window_ahead=1))
+    wide = simulate(*args, refined_config(window_back=12, window_ahead=25))
     assert np.array_equal(small, wide)
 
 
@@ -267,7 +280,7 @@ def test_numba_and_numpy_engines_agree(sampled):
     nodes = split_flat(sampled["nodes"], sampled["n_nodes"])
     flat = np.concatenate([nodes[i] for i in idx])
     n, length = sampled["n_nodes"][idx], sampled["length"][idx]
-    fast, slow = VehicleConfig(engine="numba"), VehicleConfig(engine="numpy")
+    fast, slow = refined_config(engine="numba"), refined_config(engine="numpy")
     assert np.allclose(simulate(flat, n, length, fast), simulate(flat, n, length, slow), atol=1e-9)
     spine = np.concatenate(split_flat(sampled["spine"], sampled["n_spine"])[:120])
     ns = sampled["n_spine"][idx]
@@ -314,7 +327,7 @@ def test_sampler_domain_and_valid_fraction(problem, sampled):
 
 
 def test_uniform_sampling():
-    p = VehicleProblem(sampling="uniform")
+    p = refined(sampling="uniform")
     G, L = p.sample(600, np.random.default_rng(3))
     assert p.codec.in_domain(G, L).all()
     types = G[:, :, 0][np.arange(20)[None, :] < L[:, None]].astype(int)
