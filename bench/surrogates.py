@@ -1,12 +1,15 @@
 """Surrogate speed (evaluations/s on random valid scenarios) and paper-budget search wall time.
 
-Usage: python bench/surrogates.py [--problems thermostat robot vehicle] [--no-search]
-Prints a table and writes bench/results/surrogates.json. Targets (issue 2, 2 cores):
+Usage: python bench/surrogates.py [--problems thermostat robot vehicle] [--profile replication refined]
+                                  [--no-search]
+Prints a table and writes bench/results/surrogates.json (figures per problem and fidelity profile;
+problems and profiles not measured in this run keep their previous figures). Targets (issue 2, 2 cores):
 thermostat >= 80,000/s, robot >= 600/s, vehicle >= 5,000/s; a paper-budget search < 60 s each.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
@@ -14,10 +17,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import write_result  # noqa: E402
+from _common import RESULTS, write_result  # noqa: E402
 
 from ambiegen_ros.core.search import Search, SearchSettings  # noqa: E402
-from ambiegen_ros.problems import PROBLEM_NAMES, get_problem  # noqa: E402
+from ambiegen_ros.problems import PROBLEM_NAMES, PROFILES, get_problem  # noqa: E402
 
 SAMPLES = {"thermostat": 50_000, "robot": 5_000, "vehicle": 10_000}
 
@@ -45,15 +48,25 @@ def eval_rate(problem, X: np.ndarray, batch: int, repeat: int = 3) -> float:
     return best
 
 
+def previous_figures() -> dict:
+    """Figures of the last run, so that a run of some problems or profiles keeps the others'."""
+    try:
+        return dict(json.loads((RESULTS / "surrogates.json").read_text())["figures"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return {}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--problems", nargs="+", default=list(PROBLEM_NAMES), choices=PROBLEM_NAMES)
     parser.add_argument("--no-search", action="store_true", help="skip the paper-budget searches")
     parser.add_argument("--algorithms", nargs="+", default=["ga", "nsga2", "random"])
+    parser.add_argument("--profile", nargs="+", default=list(PROFILES), choices=PROFILES,
+                        help="fidelity profiles to measure (default: all)")
     args = parser.parse_args()
-    figures = {}
-    for name in args.problems:
-        problem = get_problem(name)
+    figures = previous_figures()
+    for name, profile in ((n, p) for n in args.problems for p in args.profile):
+        problem = get_problem(name, {"profile": profile})
         X = valid_samples(problem, SAMPLES[name])
         budget = problem.paper_budget
         entry = {
@@ -63,7 +76,7 @@ def main() -> None:
             "population_batch": budget.offspring,
         }
         print(
-            f"{name:10s} surrogate: {entry['evals_per_s_population_batch']:10,.0f} evals/s (batches of "
+            f"{name:10s} {profile:11s} surrogate: {entry['evals_per_s_population_batch']:10,.0f} evals/s (batches of "
             f"{budget.offspring}), {entry['evals_per_s_batch_5000']:10,.0f} evals/s (batches of 5000)"
         )
         if not args.no_search:
@@ -79,10 +92,14 @@ def main() -> None:
                     "diversity": round(result.diversity, 3),
                 }
                 print(
-                    f"{name:10s} {algorithm:6s} paper budget: {result.evaluations} evals in {wall:6.1f} s, "
+                    f"{name:10s} {profile:11s} {algorithm:6s} paper budget: {result.evaluations} evals in "
+                    f"{wall:6.1f} s, "
                     f"best F1 {result.best_f1:.3f}, suite {len(result.suite)}, diversity {result.diversity:.2f}"
                 )
-        figures[name] = entry
+        per_profile = figures.get(name)
+        if not (isinstance(per_profile, dict) and set(per_profile) <= set(PROFILES)):
+            per_profile = figures[name] = {}  # none yet, or figures from before the profiles
+        per_profile[profile] = entry
     print("wrote", write_result("surrogates", figures))
 
 

@@ -316,7 +316,8 @@ def test_environment_is_the_scored_map(problem):
     grids = build_grids(G, lengths, problem.config)
     assert 0 < ev.valid.sum() < 25
     for i in range(len(G)):
-        scenario = problem.parse(json.loads(problem.codec.from_row(problem.codec.join(G[i:i + 1], lengths[i:i + 1])).to_json()))
+        row = problem.codec.join(G[i:i + 1], lengths[i:i + 1])
+        scenario = problem.parse(json.loads(problem.codec.from_row(row).to_json()))  # via JSON, as published
         env = problem.environment(scenario)
         np.testing.assert_array_equal(env.grid, grids[i])
         assert env.reachable == bool(ev.valid[i])
