@@ -4,15 +4,15 @@ The full-model simulators judge their own runs step by step. A system under test
 (``sim_nodes/sut_adapter.py``) only shows its odometry or temperature readings, so the same
 oracles are restated here over time-stamped samples, with the thresholds taken from the same
 config dataclasses (``RobotSimConfig``, ``CarSimConfig``, ``RoomSimConfig``) and the geometry from
-the simulators' own helpers (``robot.wall_distance``'s metric, ``car.right_lane``,
-``car.oob_fraction``, ``car._project``). Fed with a full-model timeline they give the full model's
+the simulators' own helpers (the robot's monitors ``robot.RobotMonitors`` and body clearance
+``robot.WallGeometry``, ``car.right_lane``, ``car.oob_fraction``, ``car._project``). Fed with a full-model timeline they give the full model's
 verdict (tested), which is what makes adapter results comparable with in-process ones.
 
 Judges are incremental: ``add(...)`` takes a batch of samples (numpy arrays; times in simulated
 seconds since the run started, increasing), works on the whole batch at once where the check
 allows (wall clearance, out-of-lane fraction, squared errors) and stops at the first event; the
 ``judge_*`` functions wrap them for a complete series. Sample 0 is the start: like the
-simulators, only the robot's collision check applies to it. A series that ends without a verdict
+simulators, only the robot's stall check applies to it. A series that ends without a verdict
 gives an ``error`` outcome naming why (``finish(reason)``), never a pass.
 """
 from __future__ import annotations
@@ -22,40 +22,13 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from . import car
+from . import car, robot
 from .car import CarSimConfig
 from .outcome import Outcome
-from .robot import RobotSimConfig
+from .robot import RobotSimConfig, clearances
 from .room import RoomSimConfig
 
 EPS_T = 1e-6  # time comparisons tolerate stamp rounding (nanosecond stamps of float seconds)
-
-
-def clearances(grid: np.ndarray, resolution: float, x: np.ndarray, y: np.ndarray, cells: int,
-               origin: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
-    """``robot.wall_distance`` for many points at once: distance to the nearest occupied cell square
-    within ``cells`` cells (capped there), 0 for a point whose neighbourhood lies off the grid."""
-    grid = np.asarray(grid, dtype=bool)
-    H, W = grid.shape
-    x = np.asarray(x, dtype=float) - origin[0]
-    y = np.asarray(y, dtype=float) - origin[1]
-    cx = np.floor(x / resolution).astype(np.int64)
-    cy = np.floor(y / resolution).astype(np.int64)
-    off = np.arange(-cells, cells + 1)
-    gx_cells = cx[:, None] + off[None, :]  # (N, 2c+1)
-    gy_cells = cy[:, None] + off[None, :]
-    inside_x = (gx_cells >= 0) & (gx_cells < W)
-    inside_y = (gy_cells >= 0) & (gy_cells < H)
-    occ = (grid[np.clip(gy_cells, 0, H - 1)[:, :, None], np.clip(gx_cells, 0, W - 1)[:, None, :]]
-           & inside_y[:, :, None] & inside_x[:, None, :])  # (N, 2c+1 [y], 2c+1 [x])
-    ddx = np.maximum(np.abs(x[:, None] - (gx_cells + 0.5) * resolution) - 0.5 * resolution, 0.0)
-    ddy = np.maximum(np.abs(y[:, None] - (gy_cells + 0.5) * resolution) - 0.5 * resolution, 0.0)
-    dist = np.hypot(ddx[:, None, :], ddy[:, :, None])
-    cap = cells * resolution
-    out = np.where(occ, dist, np.inf).min(axis=(1, 2), initial=np.inf)
-    out = np.minimum(out, cap)
-    off_grid = ~inside_x.any(axis=1) | ~inside_y.any(axis=1)
-    return np.where(off_grid, 0.0, out)
 
 
 class _Judge:
@@ -105,70 +78,89 @@ class _Judge:
 
 # --- robot -----------------------------------------------------------------------------------------
 class RobotJudge(_Judge):
-    """Collision (footprint disc on an occupied cell), success within ``goal_tolerance``, stall or
-    loiter (within ``stall_radius`` of one point for ``stall_time``), timeout (``timeout``)."""
+    """The paper's monitors (``robot.RobotMonitors``: stall, route completion, loitering, time
+    limit; unsafe proximity and waypoint arrivals recorded) on observed poses.
+
+    The body is the pioneer2dx footprint at each pose's heading: pass ``yaw``; without it the
+    heading of the motion between samples stands in. ``stall`` (optional, per sample): the robot's
+    own stall flag (the ND driver gave up), as Player's position2d data carries it; without it a
+    robot that gave up and stands still is caught by the loitering monitor instead. The route
+    (waypoint arrivals, the time limit) is planned from the first sample's cell like the
+    simulator's, with the problem's ``diagonal`` rule, unless ``route_length`` is given.
+    """
 
     def __init__(self, grid: np.ndarray, resolution: float, goal_xy: tuple[float, float],
-                 config: RobotSimConfig | None = None, origin: tuple[float, float] = (0.0, 0.0)):
+                 config: RobotSimConfig | None = None, origin: tuple[float, float] = (0.0, 0.0),
+                 diagonal: str = "both_free", route_length: float | None = None):
         super().__init__()
         self.cfg = config or RobotSimConfig()
         self.grid = np.asarray(grid, dtype=bool)
         self.resolution = float(resolution)
         self.goal = (float(goal_xy[0]), float(goal_xy[1]))
         self.origin = (float(origin[0]), float(origin[1]))
+        self.diagonal = diagonal
+        self.route_length = route_length
+        self.walls = robot.WallGeometry(self.grid, self.resolution, self.cfg.clearance_cells, self.origin)
+        self.monitors: robot.RobotMonitors | None = None
         self._t: list[np.ndarray] = []
         self._xy: list[np.ndarray] = []
-        self.path_length = 0.0
-        self.min_clearance = math.inf
+        self._heading = 0.0
         self._prev: tuple[float, float] | None = None
-        self._anchor = (0.0, 0.0, 0.0, 0.0)  # x, y, t, path length when anchored
 
-    def add(self, t, x, y) -> bool:
+    @property
+    def time_limit(self) -> float:
+        """Simulated seconds the oracle needs at most (known once the first sample gave the start)."""
+        if self.monitors is not None:
+            return self.monitors.time_limit
+        return self.cfg.time_limit(self.route_length) if self.route_length is not None else math.inf
+
+    def _start(self, x0: float, y0: float) -> None:
+        res, (ox, oy) = self.resolution, self.origin
+        cell = lambda px, py: (int(math.floor((px - ox) / res)), int(math.floor((py - oy) / res)))  # noqa: E731
+        waypoints, length = robot.plan_route(self.grid, res, cell(x0, y0), cell(*self.goal), self.cfg, self.diagonal)
+        if self.route_length is not None:
+            length = self.route_length
+        self.monitors = robot.RobotMonitors(self.cfg, self.goal, self.cfg.time_limit(length),
+                                            waypoints[1:] + self.origin if len(waypoints) else None)
+
+    def _headings(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Heading of the motion into each sample (the previous one where it did not move)."""
+        px = np.concatenate([[self._prev[0]], x[:-1]]) if self._prev else np.concatenate([[x[0]], x[:-1]])
+        py = np.concatenate([[self._prev[1]], y[:-1]]) if self._prev else np.concatenate([[y[0]], y[:-1]])
+        dx, dy = x - px, y - py
+        if self._prev is None and len(x) > 1:  # the first sample faces the second
+            dx[0], dy[0] = x[1] - x[0], y[1] - y[0]
+        out = np.empty(len(x))
+        heading = self._heading
+        for i in range(len(x)):
+            if dx[i] * dx[i] + dy[i] * dy[i] > 1e-12:
+                heading = math.atan2(dy[i], dx[i])
+            out[i] = heading
+        self._heading = heading
+        return out
+
+    def add(self, t, x, y, yaw=None, stall=None) -> bool:
         """Judge a batch of samples; returns True once decided (later samples are ignored)."""
         if self.decided:
             return True
         t, x, y = (np.atleast_1d(np.asarray(a, dtype=float)) for a in (t, x, y))
         if not len(t):
             return False
+        yaw = self._headings(x, y) if yaw is None else np.atleast_1d(np.asarray(yaw, dtype=float))
+        flags = np.zeros(len(t), dtype=bool) if stall is None else np.atleast_1d(np.asarray(stall)).astype(bool)
         cfg = self.cfg
-        clear = clearances(self.grid, self.resolution, x, y, cfg.clearance_cells, self.origin) - cfg.radius
-        gx, gy = self.goal
+        clear = self.walls.clearance(x, y, yaw)
+        if self.monitors is None:
+            self._start(float(x[0]), float(y[0]))
+        mon = self.monitors
         used = len(t)
         for i in range(len(t)):
-            ti, xi, yi = float(t[i]), float(x[i]), float(y[i])
-            self.min_clearance = min(self.min_clearance, float(clear[i]))
-            if self._prev is None:  # the start: only the collision check applies
-                self._prev = (xi, yi)
-                self._anchor = (xi, yi, ti, 0.0)
-                self._t0 = ti
-                if clear[i] < 0:
-                    self._decide("collision", "the robot starts inside a wall", (xi, yi))
-                    used = i + 1
-                    break
-                continue
-            self.path_length += math.hypot(xi - self._prev[0], yi - self._prev[1])
-            self._prev = (xi, yi)
-            rel = ti - self._t0
-            if clear[i] < 0:
-                self._decide("collision", f"footprint touches a wall at ({xi:.2f}, {yi:.2f}) after {rel:.1f} s", (xi, yi))
-            elif math.hypot(gx - xi, gy - yi) <= cfg.goal_tolerance:
-                self._decide("none", f"goal reached in {rel:.1f} s")
-            else:
-                ax, ay, at, ap = self._anchor
-                if math.hypot(xi - ax, yi - ay) > cfg.stall_radius:
-                    self._anchor = (xi, yi, ti, self.path_length)
-                elif ti - at >= cfg.stall_time - EPS_T:
-                    moved = self.path_length - ap
-                    if moved < cfg.stall_radius:
-                        self._decide("stall", f"stalled near ({xi:.2f}, {yi:.2f}) for {cfg.stall_time:g} s", (xi, yi))
-                    else:
-                        self._decide("loiter", f"loitered within {cfg.stall_radius:g} m of ({ax:.2f}, {ay:.2f}) "
-                                               f"({moved:.1f} m driven)", (xi, yi))
-                if not self.decided and rel >= cfg.timeout - EPS_T:
-                    self._decide("timeout", f"goal not reached within {cfg.timeout:g} s", (xi, yi))
-            if self.decided:
+            if mon.update(float(t[i]), float(x[i]), float(y[i]), float(clear[i]), "reported" if flags[i] else None):
                 used = i + 1
                 break
+        self._prev = (float(x[used - 1]), float(y[used - 1]))
+        if mon.decided:
+            self._decide(mon.kind, mon.detail, mon.failure_point)
         self._t.append(t[:used])
         self._xy.append(np.column_stack([x[:used], y[:used]]))
         self.samples += used
@@ -181,34 +173,35 @@ class RobotJudge(_Judge):
     @property
     def elapsed(self) -> float:
         """Simulated seconds covered so far."""
-        return 0.0 if self._prev is None else self.t_last - self._t0
+        return 0.0 if self.monitors is None else self.monitors.t
 
     def outcome(self) -> Outcome:
         t = np.concatenate(self._t) if self._t else np.zeros(0)
         xy = np.concatenate(self._xy) if self._xy else np.zeros((0, 2))
         t_rel = t - t[0] if len(t) else t
-        time_s = float(t_rel[-1]) if len(t) else 0.0
-        success = self.kind == "none"
-        metrics = {
+        mon = self.monitors
+        metrics = mon.metrics() if mon is not None else {"time": 0.0, "path_length": 0.0, "min_clearance": None}
+        metrics.update({
             "outcome": {"none": "success"}.get(self.kind or "error", self.kind or "error"),
-            "time": time_s,
-            "path_length": self.path_length,
-            "min_clearance": float(self.min_clearance) if math.isfinite(self.min_clearance) else None,
             "radius": self.cfg.radius,
             "distance_to_goal": float(math.hypot(xy[-1, 0] - self.goal[0], xy[-1, 1] - self.goal[1])) if len(xy) else None,
             "samples": self.samples,
-        }
+        })
+        if mon is not None and self.kind == "stall" and mon.outcome == "no_route":
+            metrics["outcome"] = "no_route"
+        success = self.kind == "none"
         return self._outcome(
-            {"robot_time": time_s if success else self.cfg.timeout}, metrics,
+            {"robot_time": metrics["time"] if success else self.time_limit}, metrics,
             xy if len(xy) else None, {"t": t_rel, "x": xy[:, 0], "y": xy[:, 1]},
         )
 
 
 def judge_robot(t, x, y, grid: np.ndarray, resolution: float, goal_xy: tuple[float, float],
-                config: RobotSimConfig | None = None, origin: tuple[float, float] = (0.0, 0.0)) -> Outcome:
+                config: RobotSimConfig | None = None, origin: tuple[float, float] = (0.0, 0.0), *,
+                yaw=None, stall=None, diagonal: str = "both_free") -> Outcome:
     """Judge a complete robot trajectory (times in simulated seconds, positions in the map frame)."""
-    judge = RobotJudge(grid, resolution, goal_xy, config, origin)
-    if not judge.add(t, x, y):
+    judge = RobotJudge(grid, resolution, goal_xy, config, origin, diagonal)
+    if not judge.add(t, x, y, yaw, stall):
         judge.finish(f"trajectory ends after {judge.elapsed:.1f} s without a verdict")
     return judge.outcome()
 
