@@ -81,10 +81,11 @@ def robot_runs():
     goal = (24, 24)
     cases = [
         ("success", robot.RobotSimConfig()),
-        ("collision", robot.RobotSimConfig(fov_deg=60, beams=61, directions=31)),  # cannot see the corner
-        ("dead end", robot.RobotSimConfig(radius=0.45)),  # fits on paper, cannot enter: stall/loiter
+        ("contact", robot.RobotSimConfig(planner="gap", radius=0.1, margin=0.0, squeeze_margin=0.0, fov_deg=60,
+                                         beams=61, directions=31)),  # clips the corner it cannot see: stall
+        ("dead end", robot.RobotSimConfig(planner="gap", radius=0.45)),  # fits on paper, cannot enter: loiter
         ("no route", robot.RobotSimConfig(radius=0.55)),
-        ("timeout", robot.RobotSimConfig(timeout=20.0)),
+        ("timeout", robot.RobotSimConfig(timeout=20.0, timeout_route_factor=0.0, timeout_margin=0.0)),
     ]
     return [(label, robot.navigate(g, 1.0, (5, 5), goal, cfg, seed=2), cfg, g, goal) for label, cfg in cases]
 
@@ -93,14 +94,15 @@ def test_robot_oracle_gives_the_simulator_verdicts():
     kinds = set()
     for label, run, cfg, g, goal in robot_runs():
         tl = run["timeline"]
-        out = oracles.judge_robot(tl["t"], tl["x"], tl["y"], g, 1.0, ((goal[0] + 0.5), (goal[1] + 0.5)), cfg)
+        out = oracles.judge_robot(tl["t"], tl["x"], tl["y"], g, 1.0, ((goal[0] + 0.5), (goal[1] + 0.5)), cfg,
+                                  yaw=tl["yaw"], stall=tl["stall"])
         assert out.failure_kind == run["failure_kind"], (label, out.detail, run["detail"])
         assert out.metrics["time"] == pytest.approx(run["time"], abs=1e-9)
         assert out.metrics["path_length"] == pytest.approx(run["path_length"], abs=1e-9)
         assert out.metrics["min_clearance"] == pytest.approx(run["min_clearance"], abs=1e-12)
         assert out.failed == (run["failure_kind"] != "none")
         kinds.add(out.failure_kind)
-    assert {"none", "collision", "timeout", "stall"} <= kinds
+    assert {"none", "stall", "loiter", "timeout"} <= kinds
 
 
 def test_car_and_room_oracles_give_the_simulator_verdicts(problems):
@@ -147,8 +149,8 @@ def test_batches_and_sampled_scenarios_do_not_change_verdicts(problems):
     tl = run["timeline"]
     judge = oracles.RobotJudge(g, 1.0, (goal[0] + 0.5, goal[1] + 0.5), cfg)
     for part in np.array_split(np.arange(len(tl["t"])), 7):
-        judge.add(tl["t"][part], tl["x"][part], tl["y"][part])
-    assert judge.outcome().failure_kind == run["failure_kind"] == "collision"
+        judge.add(tl["t"][part], tl["x"][part], tl["y"][part], tl["yaw"][part], tl["stall"][part])
+    assert judge.outcome().failure_kind == run["failure_kind"] == "stall"
 
 
 def test_a_series_cut_short_is_an_error_not_a_pass(problems):
