@@ -2,7 +2,10 @@
 
 Starts a recorder, K sim workers and the generator on one DDS domain, waits for the generator to
 finish, stops the others with SIGINT (so the MCAP is finalised), then summarises the run from the
-MCAP log alone and writes ``DIR/summary.json``. Node logs go to ``DIR/logs/``.
+MCAP log alone and writes ``DIR/summary.json`` (with the fidelity profile the run used). The
+generator writes the final suite to ``DIR/suite.json``; the same seed gives the same bytes there
+and the same scenarios and F1 values in the log, with any number of workers. Node logs go to
+``DIR/logs/``.
 """
 from __future__ import annotations
 
@@ -42,6 +45,7 @@ class CampaignSpec:
     extra_env: dict[str, str] = field(default_factory=dict)
     generator_params: dict[str, Any] = field(default_factory=dict)  # further ROS parameters of the generator
     sim_model: str = "full"  # the workers' executor: full-model simulator + oracle, or the surrogate
+    profile: str | None = None  # fidelity profile of every node (None: the config file's, else the default)
 
 
 def _ros_params(**params: Any) -> list[str]:
@@ -92,6 +96,7 @@ class Campaign:
         self.run_id = f"{spec.problem}-{spec.algorithm}-s{spec.seed}-{uuid.uuid4().hex[:6]}"
         self.out = Path(spec.out)
         self.mcap = self.out / f"{self.run_id}.mcap"
+        self.suite = self.out / "suite.json"
         self.env = dict(os.environ, **spec.extra_env)
         if spec.domain_id is not None:
             self.env["ROS_DOMAIN_ID"] = str(spec.domain_id)
@@ -103,6 +108,7 @@ class Campaign:
     def run(self, progress=None) -> dict[str, Any]:
         spec = self.spec
         self.out.mkdir(parents=True, exist_ok=True)
+        self.suite.unlink(missing_ok=True)  # written by this run's generator, not left from another
         start = time.monotonic()
         self._start("recorder", "ambiegen_ros.nodes.recorder", _ros_params(output=str(self.mcap.resolve())))
         for k in range(spec.workers):
@@ -114,7 +120,7 @@ class Campaign:
                 + _ros_params(
                     worker_id=f"{name}_{self.run_id[-6:]}",  # unique per run: campaigns may share a domain
                     model=spec.sim_model,
-                    seed=spec.seed,
+                    profile=spec.profile,
                     # stream Odometry/Temperature for the executed suite; in the loop it would be every evaluation
                     timeline_period=0.0 if spec.mode == "in_the_loop" else None,
                     min_result_subscribers=2,
@@ -132,8 +138,10 @@ class Campaign:
                 population=spec.population,
                 offspring=spec.offspring,
                 seed=spec.seed,
+                profile=spec.profile,
                 mode=spec.mode,
                 run_id=self.run_id,
+                suite_file=str(self.suite.resolve()),
                 config_file=spec.config,
                 min_subscribers=spec.workers + 1,
                 min_workers=spec.workers,
@@ -176,6 +184,7 @@ class Campaign:
             "algorithm": spec.algorithm,
             "mode": spec.mode,
             "sim_model": spec.sim_model,
+            "profile": spec.profile,
             "seed": spec.seed,
             "workers": spec.workers,
             "domain_id": self.env.get("ROS_DOMAIN_ID", "0"),
@@ -184,20 +193,27 @@ class Campaign:
         }
         if self.mcap.exists():
             try:
+                from .nodes.execution import run_profile
+
                 summary.update(summarize(self.mcap, self.run_id))
-                summary["metadata"] = sorted(read_metadata(self.mcap))
+                metadata = read_metadata(self.mcap)
+                summary["metadata"] = sorted(metadata)
+                recorded = run_profile(metadata.get("ambiegen_run", {}).get("config_json", ""))
+                summary["profile"] = recorded or summary["profile"]  # what the run used, as recorded
             except Exception as exc:  # a damaged log is reported, not hidden
                 summary["mcap"] = str(self.mcap)
                 summary["log_error"] = f"{type(exc).__name__}: {exc} (try: ambiegen recover {self.mcap})"
         else:
             summary["log_error"] = f"no MCAP written (see {self.out / 'logs' / 'recorder.log'})"
+        if self.suite.exists():
+            summary["suite"] = str(self.suite)
         return summary
 
 
 def register_cli(sub) -> None:
     """Adds `campaign` and `recover` to the `ambiegen` CLI."""
     from .core.search import ALGORITHMS
-    from .problems import PROBLEM_NAMES
+    from .problems import PROBLEM_NAMES, PROFILES
 
     p = sub.add_parser(
         "campaign",
@@ -218,6 +234,8 @@ def register_cli(sub) -> None:
     p.add_argument("--sim-model", default="full", choices=("full", "surrogate"),
                    help="what the sim workers run: full-model simulator + failure oracle (default) or the surrogate")
     p.add_argument("--config", metavar="FILE.yaml", help="run config (search settings + problem_config)")
+    p.add_argument("--profile", choices=PROFILES,
+                   help="fidelity profile of the generator and every sim worker (default: the config's, else replication)")
     p.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID for all nodes (default: inherited, else 0)")
     p.add_argument("--result-timeout", type=float, default=30.0, help="seconds to wait for each result")
     p.add_argument(
@@ -280,6 +298,7 @@ def cmd_campaign(args) -> int:
         timeout=args.timeout,
         generator_params={} if args.max_in_flight is None else {"max_in_flight": args.max_in_flight},
         sim_model=args.sim_model,
+        profile=args.profile,
     )
     campaign = Campaign(spec)
     tty = sys.stderr.isatty()

@@ -3,7 +3,9 @@
 Starts a recorder, `workers` sim nodes of the problem and the generator (the same node set as
 `ambiegen campaign` on machines without ROS). Arguments: problem, algorithm, evaluations
 (0 = the paper's budget), time_budget (s, 0 = none), seed (-1 = drawn), mode
-(surrogate | in_the_loop), workers, output_dir, config_file ('' = config/<problem>.yaml).
+(surrogate | in_the_loop), workers, output_dir, config_file ('' = config/<problem>.yaml), profile
+(fidelity profile of the generator and every sim node: replication | refined; '' = the config
+file's, else replication).
 """
 import os
 
@@ -25,6 +27,7 @@ ARGUMENTS = {
     "workers": ("1", "number of sim nodes sharing the scenarios"),
     "output_dir": (".", "where the recorder writes <run>.mcap"),
     "config_file": ("", "run config YAML ('' = the package's config/<problem>.yaml)"),
+    "profile": ("", "fidelity profile of every node: replication | refined ('' = the config file's, else replication)"),
 }
 
 
@@ -41,7 +44,8 @@ def _nodes(context):
     for k in range(workers):
         name = f"{problem}_sim_{k}"
         nodes.append(Node(package="ambiegen_ros", executable=SIM_EXECUTABLES[problem], name=name, output="screen",
-                          parameters=[{"worker_id": name, "config_file": config, "min_result_subscribers": 2}]))
+                          parameters=[{"worker_id": name, "config_file": config, "profile": value["profile"],
+                                       "min_result_subscribers": 2}]))
     nodes.append(Node(
         package="ambiegen_ros", executable="generator", name="generator", output="screen",
         parameters=[{
@@ -52,6 +56,7 @@ def _nodes(context):
             "seed": int(value["seed"]),
             "mode": value["mode"],
             "config_file": config,
+            "profile": value["profile"],
             "min_subscribers": workers + 1,
         }],
     ))

@@ -19,6 +19,9 @@ a driving stack or a thermostat when proving ``sut_adapter`` end to end:
   start a new run) and ``room_model_topic`` (``std_msgs/UInt8``: room model 1..7 from now on;
   default the ``room_model`` parameter). A run lasts at most ``max_duration`` simulated seconds.
 
+The problem's numbers (room models, lane width, A* rule) come from ``config_file`` and
+``profile`` (``replication`` | ``refined``; '' = the file's, else ``replication``).
+
 Clock: message stamps are this system's simulated clock, which starts at the wall time a run
 starts and then advances ``time_scale`` times faster than the wall clock (samples are published
 when the wall clock reaches them). Simulator numbers are parameters ``sim.<field>`` (every field
@@ -33,8 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from ambiegen_ros.core.config import ConfigError, load_config_file
-from ambiegen_ros.problems import get_problem
+from ambiegen_ros.core.config import ConfigError
 from ambiegen_ros.ros import conversions
 from ambiegen_ros.ros.qos import DEFAULT, LATCHED, STREAM, Qos
 from ambiegen_ros.ros.transport import create_node
@@ -42,6 +44,7 @@ from ambiegen_ros.sims import car, robot
 from ambiegen_ros.sims.full_model import SIMULATORS
 from ambiegen_ros.sims.room import SteppedRoom
 from ambiegen_ros.nodes import run_node
+from sim_nodes.worker import load_problem
 
 PROBLEMS = ("robot", "vehicle", "thermostat")
 
@@ -80,8 +83,7 @@ class ExternalSim:
         self.problem_name = p("problem", "robot", "robot | vehicle | thermostat")
         if self.problem_name not in PROBLEMS:
             raise ConfigError(f"problem: unknown {self.problem_name!r} (allowed: {'|'.join(PROBLEMS)})")
-        config_file = p("config_file", "", "YAML with problem_config overrides (thermostat: room models)")
-        self.problem = get_problem(self.problem_name, load_config_file(config_file).get("problem_config") or {})
+        self.problem = load_problem(n, self.problem_name)  # config_file (thermostat: room models) + profile
         self.time_scale = float(p("time_scale", 1.0, "simulated seconds per wall second"))
         if not self.time_scale > 0:
             raise ConfigError("time_scale: must be > 0")

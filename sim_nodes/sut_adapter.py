@@ -23,6 +23,9 @@ Time: the first sample after the scenario started is t = 0. With ``stamp_clock:=
 header stamps count simulated seconds (a real system at time_scale 1, a simulator stamping with
 its own clock); ``wall``: stamps are wall time of a system running ``time_scale`` times faster
 (t = stamp difference x time_scale); ``receive``: stamps are ignored, arrival time x time_scale.
+The problem (validity, the scenario's environment) follows ``config_file`` and ``profile``
+(``replication`` | ``refined``; '' = the file's, else ``replication``), like the sim workers; a
+run with another profile gets ``ERROR`` results instead of executions.
 The verdict comes from ``ambiegen_ros.sims.oracles`` with the thresholds in ``oracle.<field>``
 (defaults: the full-model simulators'). No first sample within ``start_timeout`` s, no sample for
 ``silence_timeout`` s, or the run taking longer than ``wall_slack`` x its simulated limit /
@@ -42,8 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from ambiegen_ros.core.config import ConfigError, load_config_file
-from ambiegen_ros.problems import get_problem
+from ambiegen_ros.core.config import ConfigError
 from ambiegen_ros.ros import conversions
 from ambiegen_ros.ros.qos import DEFAULT, LATCHED, STREAM, Qos
 from ambiegen_ros.ros.transport import create_node
@@ -51,7 +53,7 @@ from ambiegen_ros.sims import Outcome
 from ambiegen_ros.sims.full_model import FullModelExecutor, sim_config
 from ambiegen_ros.sims.oracles import CarJudge, RobotJudge, ThermostatJudge
 from ambiegen_ros.nodes import run_node
-from sim_nodes.worker import WorkerEndpoint
+from sim_nodes.worker import WorkerEndpoint, load_problem
 
 ORACLE_FIELDS = {
     "robot": ("radius", "goal_tolerance", "stall_radius", "stall_time", "timeout", "clearance_cells"),
@@ -118,7 +120,6 @@ class SutAdapter:
         self.problem_name = p("problem", "robot", "robot | vehicle | thermostat")
         if self.problem_name not in ORACLE_FIELDS:
             raise ConfigError(f"problem: unknown {self.problem_name!r} (allowed: {'|'.join(ORACLE_FIELDS)})")
-        config_file = p("config_file", "", "YAML with problem_config overrides")
         self.frame_id = p("frame_id", "map", "frame of the published map, poses and road")
         self.time_scale = float(p("time_scale", 1.0, "simulated seconds per wall second of the system under test"))
         self.stamp_clock = p("stamp_clock", "sim", "sim | wall | receive: how sample times are read")
@@ -150,7 +151,7 @@ class SutAdapter:
                 options[name] = value
         options["run_invalid"] = bool(self.run_invalid)
         self.oracle = sim_config(self.problem_name, options)
-        self.problem = get_problem(self.problem_name, load_config_file(config_file).get("problem_config") or {})
+        self.problem = load_problem(n, self.problem_name)  # config_file + profile
         self.validity = FullModelExecutor(self.problem, config=self.oracle).validity
 
         sample_qos = Qos(reliable=odom_reliable, transient_local=False, depth=STREAM.depth)

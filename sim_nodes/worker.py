@@ -2,11 +2,22 @@
 
 Parameters: ``worker_id`` (unique per worker; default ``<node name>_<pid>``), ``model``
 (``full``: the full-model simulator with the paper's oracles, default; ``surrogate``: the case
-study's fast surrogate), ``seed`` (full models: scenario k runs with seed + k), ``timeline_period``
-(simulated seconds between the Odometry / Temperature samples streamed on
+study's fast surrogate), ``profile`` (fidelity profile of the problem: ``replication`` |
+``refined``; '' = the config file's ``problem_config.profile``, else ``replication``),
+``timeline_period`` (simulated seconds between the Odometry / Temperature samples streamed on
 ``/ambiegen/<problem>/odom|temperature``; 0 = none), ``config_file`` (problem numbers under
 ``problem_config``), ``heartbeat_period`` (s), ``min_result_subscribers`` (wait for that many
-result subscribers, e.g. generator + recorder, before announcing itself).
+result subscribers, e.g. generator + recorder, before announcing itself), ``batch_period`` (s),
+``max_batch``.
+
+Reproducibility: a scenario's outcome depends only on the scenario, the run's seed (from its
+message) and this node's problem config, never on which worker runs it or what it was batched
+with. The full models' noise is seeded with ``scenario_seed(run seed, scenario id)``.
+
+Profiles: heartbeats say which profile this worker scores, and the generator does not use a
+worker of another profile. A scenario of a run whose latched run config (``/ambiegen/run_config``)
+names another profile is answered with an ``ERROR`` result saying so, never scored in the wrong
+environment.
 
 Heartbeats come from a small thread of their own, so a worker busy with a long execution (a
 full-model run, a JIT compile on first use) is not declared dead and robbed of its scenarios; a
@@ -31,14 +42,37 @@ from typing import Any, Callable
 
 from ambiegen_ros.core.attributes import ScenarioError
 from ambiegen_ros.core.config import ConfigError, load_config_file
-from ambiegen_ros.problems import get_problem
+from ambiegen_ros.problems import PROFILES, get_problem
 from ambiegen_ros.ros import conversions, topics
-from ambiegen_ros.ros.qos import DEFAULT, STREAM
+from ambiegen_ros.ros.qos import DEFAULT, LATCHED, STREAM
 from ambiegen_ros.ros.transport import create_node
 from ambiegen_ros.sims import Outcome, SurrogateExecutor, full_model_executor
+from ambiegen_ros.sims.full_model import scenario_seed
 from ambiegen_ros.nodes import run_node
+from ambiegen_ros.nodes.execution import run_profile
 
 MODELS = ("full", "surrogate")
+
+
+def load_problem(node: Any, problem_name: str) -> Any:
+    """The node's problem from its ``config_file`` and ``profile`` parameters (declared here).
+
+    ``profile`` wins over the file's ``problem_config.profile``; '' leaves the file's (else the
+    default, ``replication``).
+    """
+    config_file = node.declare_parameter("config_file", "", "YAML with problem_config overrides")
+    profile = node.declare_parameter(
+        "profile", "", f"fidelity profile: {' | '.join(PROFILES)} ('' = the config file's, else {PROFILES[0]})"
+    )
+    problem_config = dict(load_config_file(config_file).get("problem_config") or {})
+    if profile:
+        if profile not in PROFILES:
+            raise ConfigError(f"profile: unknown {profile!r} (allowed: {'|'.join(PROFILES)})")
+        problem_config["profile"] = profile
+    try:
+        return get_problem(problem_name, problem_config)
+    except TypeError as exc:
+        raise ConfigError(f"config: problem_config: {exc}")
 
 
 class WorkerEndpoint:
@@ -47,8 +81,9 @@ class WorkerEndpoint:
     Declares ``worker_id``, ``heartbeat_period`` and ``min_result_subscribers``; heartbeats from a
     thread of its own once enough result subscribers are matched; takes the scenario messages
     addressed to this worker (or to anyone), answers malformed ones at once (``INVALID_SCENARIO``
-    naming the field, or ``ERROR``) and hands valid ones to ``accept(run_id, scenario_id,
-    scenario, msg)``; publishes results with ``publish``.
+    naming the field, or ``ERROR``) and those of a run with another fidelity profile (``ERROR``),
+    and hands valid ones to ``accept(run_id, scenario_id, scenario, msg)``; publishes results
+    with ``publish``.
     """
 
     def __init__(self, node: Any, problem: Any, accept: Callable[[str, int, Any, Any], None],
@@ -68,6 +103,8 @@ class WorkerEndpoint:
         n.create_subscription(
             topics.SCENARIO_TYPES[problem.name], topics.scenarios(problem.name), self.on_scenario, STREAM
         )
+        self.run_profiles: dict[str, str] = {}  # run id -> profile its (latched) run config names
+        n.create_subscription(topics.RUN_CONFIG_TYPE, topics.RUN_CONFIG, self.on_run_config, LATCHED)
         self.executed = 0
         self.ready = False
         self._stop = threading.Event()
@@ -81,7 +118,9 @@ class WorkerEndpoint:
                 return
         make = self.node.new_message
         self.heartbeats.publish(
-            conversions.heartbeat_message(make, self.worker_id, self.problem.name, self._in_flight(), self.executed)
+            conversions.heartbeat_message(
+                make, self.worker_id, self.problem.name, self._in_flight(), self.executed, {"profile": self.problem.profile}
+            )
         )
 
     def _beat_loop(self, period: float) -> None:
@@ -98,11 +137,35 @@ class WorkerEndpoint:
         self._stop.set()
         self._beats.join(timeout=2.0)
 
+    def on_run_config(self, msg: Any) -> None:
+        profile = run_profile(msg.config_json)
+        if profile is not None:
+            self.run_profiles[msg.run_id] = profile
+            if profile != self.problem.profile:
+                self.node.logger.error(
+                    f"run {msg.run_id} uses the {profile!r} profile, this worker scores {self.problem.profile!r}: "
+                    f"its scenarios get ERROR results (start the worker with profile:={profile})"
+                )
+
+    def profile_mismatch(self, run_id: str) -> str | None:
+        """Why this worker must not score a run's scenarios (None when it may, or cannot tell)."""
+        theirs = self.run_profiles.get(run_id)
+        if theirs is None or theirs == self.problem.profile:
+            return None
+        return (
+            f"profile mismatch: run {run_id} uses the {theirs!r} profile, worker {self.worker_id} scores "
+            f"{self.problem.profile!r} (start it with profile:={theirs})"
+        )
+
     def on_scenario(self, msg: Any) -> None:
         meta = msg.meta
         if meta.assigned_worker not in ("", self.worker_id):
             return
         start = time.perf_counter()
+        mismatch = self.profile_mismatch(meta.run_id)
+        if mismatch is not None:
+            self.publish(meta.run_id, meta.scenario_id, Outcome.rejected(mismatch, kind="error"), start)
+            return
         try:
             scenario, _ = conversions.scenario_from_message(self.problem, msg)
             self._accept(meta.run_id, int(meta.scenario_id), scenario, msg)
@@ -125,34 +188,34 @@ class SimWorker:
     def __init__(self, problem_name: str, argv: list[str] | None = None, node=None):
         self.node = node or create_node(f"{problem_name}_sim", argv=argv)
         n = self.node
-        config_file = n.declare_parameter("config_file", "", "YAML with problem_config overrides")
         batch_period = n.declare_parameter("batch_period", 0.002, "seconds to collect scenarios into one batch")
         self.max_batch = max(1, n.declare_parameter("max_batch", 256, "most scenarios executed in one batch"))
         self.model = n.declare_parameter("model", "full", "full (full-model simulator + oracle) | surrogate")
-        self.seed = n.declare_parameter("seed", 0, "full models: scenario k runs with seed + k")
         default_period = 180.0 if problem_name == "thermostat" else 0.5
         self.timeline_period = n.declare_parameter(
             "timeline_period", default_period, "simulated seconds between streamed samples (0 = none)"
         )
         if self.model not in MODELS:
             raise ConfigError(f"model: unknown {self.model!r} (allowed: {'|'.join(MODELS)})")
-        self.problem = get_problem(problem_name, load_config_file(config_file).get("problem_config") or {})
+        self.problem = load_problem(n, problem_name)
         if self.model == "full":
             self.executor = full_model_executor(self.problem)
             self.timeline = n.create_publisher(topics.TIMELINE_TYPES[problem_name], topics.timeline(problem_name), STREAM)
         else:
             self.executor = SurrogateExecutor(self.problem)
             self.timeline = None
-        self.pending: deque[tuple[str, int, Any]] = deque()  # (run id, scenario id, validated scenario)
+        self.pending: deque[tuple[str, int, Any, int]] = deque()  # (run id, scenario id, scenario, run seed)
         self.endpoint = WorkerEndpoint(n, self.problem, self.accept, lambda: len(self.pending))
         self.worker_id = self.endpoint.worker_id
         self.publish = self.endpoint.publish
         self.stop = self.endpoint.stop
         n.create_timer(batch_period, self.execute_pending)
-        n.logger.info(f"{self.worker_id}: executing {problem_name} scenarios ({self.model} model)")
+        n.logger.info(
+            f"{self.worker_id}: executing {problem_name} scenarios ({self.model} model, {self.problem.profile} profile)"
+        )
 
     def accept(self, run_id: str, scenario_id: int, scenario: Any, msg: Any) -> None:
-        self.pending.append((run_id, scenario_id, scenario))
+        self.pending.append((run_id, scenario_id, scenario, int(msg.meta.seed)))
         if len(self.pending) >= self.max_batch:
             self.execute_pending()
 
@@ -162,9 +225,9 @@ class SimWorker:
         execute_batch = getattr(self.executor, "execute_batch", None)  # vectorised, when the executor has it
         if execute_batch is None or len(self.pending) == 1:
             # one per turn: its result leaves at once, heartbeats and new scenarios are served between
-            run_id, scenario_id, scenario = self.pending.popleft()
+            run_id, scenario_id, scenario, run_seed = self.pending.popleft()
             start, start_ns = time.perf_counter(), self.node.now_ns()
-            outcome = self._execute_one(scenario, scenario_id)
+            outcome = self._execute_one(scenario, scenario_id, run_seed)
             self.publish(run_id, scenario_id, outcome, start)
             self.publish_timeline(outcome, start_ns)
             return
@@ -172,18 +235,18 @@ class SimWorker:
         self.pending.clear()
         start = time.perf_counter()
         try:
-            outcomes = list(execute_batch([s for _, _, s in batch]))
+            outcomes = list(execute_batch([s for _, _, s, _ in batch]))
         except Exception:  # find the culprit: each scenario alone gets its own answer
-            outcomes = [self._execute_one(s, sid) for _, sid, s in batch]
+            outcomes = [self._execute_one(s, sid, seed) for _, sid, s, seed in batch]
         share = (time.perf_counter() - start) / len(batch)
-        for (run_id, scenario_id, _), outcome in zip(batch, outcomes):
+        for (run_id, scenario_id, _, _), outcome in zip(batch, outcomes):
             outcome.elapsed_sec = share
             self.publish(run_id, scenario_id, outcome)
 
-    def _execute_one(self, scenario: Any, scenario_id: int) -> Outcome:
+    def _execute_one(self, scenario: Any, scenario_id: int, run_seed: int) -> Outcome:
         try:
             if self.model == "full":
-                return self.executor.execute(scenario, seed=self.seed + int(scenario_id))
+                return self.executor.execute(scenario, seed=scenario_seed(run_seed, scenario_id))
             return self.executor.execute(scenario)
         except ScenarioError as exc:
             return Outcome.rejected(str(exc))

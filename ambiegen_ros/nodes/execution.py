@@ -4,9 +4,14 @@ Shared by the generator and replay nodes. ``core.dispatch.Dispatcher`` decides w
 when to give up; this class only turns its decisions into messages and results into outcomes.
 Every scenario added ends in ``outcomes`` with the worker's outcome or a ``sim_timeout`` outcome
 that is also published as an explicit result record.
+
+A worker whose heartbeat names another fidelity profile than this run's problem is never given a
+scenario (it would score another environment); it is reported once in the log. Scenarios offered
+to anyone still reach it, and it answers them with an ``ERROR`` result (``sim_nodes.worker``).
 """
 from __future__ import annotations
 
+import json
 import time
 from typing import Any
 
@@ -25,6 +30,18 @@ DISPATCH_PARAMETERS = {
     "max_attempts": (2, "attempts per scenario before recording a timeout"),
     "max_in_flight": (8, "scenarios in flight per worker"),
 }
+
+
+def run_profile(config_json: str) -> str | None:
+    """The fidelity profile a run config (``RunConfig.config_json``) names; None when it names none."""
+    try:
+        config = json.loads(config_json)
+    except ValueError:
+        return None
+    if not isinstance(config, dict):
+        return None
+    profile = config.get("profile") or (config.get("problem_config") or {}).get("profile")
+    return str(profile) if profile else None
 
 
 class RemoteExecution:
@@ -48,6 +65,7 @@ class RemoteExecution:
         self.timeouts = 0
         self.errors = 0
         self.invalid = 0
+        self.foreign_workers: set[str] = set()  # workers of another fidelity profile, never used
 
     def add(self, scenario: Any, meta: ScenarioMeta) -> None:
         self.scenarios[meta.scenario_id] = (scenario, meta)
@@ -100,5 +118,15 @@ class RemoteExecution:
         self.invalid += outcome.failure_kind == "invalid_scenario"
 
     def on_worker(self, msg: Any) -> None:
-        if msg.hardware_id == self.problem.name:
-            self.dispatcher.heartbeat(msg.name, time.monotonic())
+        if msg.hardware_id != self.problem.name:
+            return
+        profile = next((kv.value for kv in msg.values if kv.key == "profile"), self.problem.profile)
+        if profile != self.problem.profile:
+            if msg.name not in self.foreign_workers:
+                self.foreign_workers.add(msg.name)
+                self.node.logger.error(
+                    f"worker {msg.name} scores the {profile!r} profile, run {self.run_id} uses "
+                    f"{self.problem.profile!r}: not sending it scenarios"
+                )
+            return
+        self.dispatcher.heartbeat(msg.name, time.monotonic())

@@ -10,26 +10,38 @@ Modes:
 Every published scenario ends with a result from a worker or an explicit ``SIM_TIMEOUT`` result
 written by this node (``execution.RemoteExecution`` over ``core.dispatch``).
 
+Reproducible: a seed gives the same scenarios, F1 values and suite with any number of workers
+and any batching on their side. Each generation is told in scenario order once all its results
+are in, and no clock enters the search unless ``time_budget`` is set (a ``SIM_TIMEOUT`` result,
+by nature, depends on the clock too). This holds as long as each problem's ``evaluate`` gives a
+scenario the same bits whatever it is batched with (``test/core/test_batch_invariance.py``).
+
 Parameters: problem (thermostat | robot | vehicle), algorithm (ga | nsga2 | random), evaluations
 (0 = the paper's budget), time_budget (s, 0 = none), population, offspring (0 = the paper's), seed
-(-1 = drawn and recorded), config_file (run config YAML), mode (surrogate | in_the_loop), run_id,
+(-1 = drawn and recorded), profile (fidelity profile: replication | refined; '' = the config
+file's problem_config.profile, else replication), config_file (run config YAML), mode (surrogate |
+in_the_loop), run_id, suite_file (write the final suite there as JSON; '' = none),
 min_subscribers, min_workers, subscriber_wait (s), exit_when_done, status_period (s),
 result_timeout (s), worker_timeout (s), worker_wait (s), max_attempts, max_in_flight.
+The run config (latched, and in the recorder's MCAP metadata) records the profile.
 Topics: publishes /ambiegen/run_config (latched), /ambiegen/status, /ambiegen/<problem>/scenarios
 and SIM_TIMEOUT records on /ambiegen/results; subscribes /ambiegen/results and /ambiegen/workers.
 """
 from __future__ import annotations
 
+import json
 import sys
 import time
 import uuid
+from pathlib import Path
+
 import numpy as np
 
 from .. import __version__
 from ..core.config import ConfigError, make_run
-from ..core.runs import run_config
+from ..core.runs import run_config, suite_document
 from ..core.search import Search
-from ..problems.base import Evaluation
+from ..problems.base import PROFILES, Evaluation
 from ..ros import conversions, topics
 from ..ros.conversions import ScenarioMeta
 from ..ros.qos import DEFAULT, LATCHED
@@ -52,7 +64,9 @@ class Generator:
         population = p("population", 0, "population size (0 = the paper's)")
         offspring = p("offspring", 0, "offspring per generation (0 = the paper's)")
         seed = p("seed", -1, "random seed (-1 = drawn and recorded)")
+        profile = p("profile", "", f"fidelity profile: {' | '.join(PROFILES)} ('' = the config file's, else {PROFILES[0]})")
         config_file = p("config_file", "", "YAML run config (search settings + problem_config)")
+        self.suite_file = p("suite_file", "", "write the final suite here as JSON ('' = none)")
         self.mode = p("mode", "surrogate", "surrogate | in_the_loop")
         self.run_id = p("run_id", "", "run id ('' = generated)") or f"run-{uuid.uuid4().hex[:8]}"
         self.min_subscribers = p("min_subscribers", 1, "scenario subscribers to wait for before publishing")
@@ -62,9 +76,12 @@ class Generator:
         status_period = p("status_period", 0.5, "seconds between run status messages")
         if self.mode not in ("surrogate", "in_the_loop"):
             raise ConfigError(f"mode: unknown {self.mode!r} (allowed: surrogate|in_the_loop)")
+        if profile and profile not in PROFILES:
+            raise ConfigError(f"profile: unknown {profile!r} (allowed: {'|'.join(PROFILES)})")
         self.problem, self.settings = make_run(
             problem,
             config_file or None,
+            profile=profile or None,
             algorithm=algorithm,
             evaluations=evaluations or None,
             time_budget=time_budget or None,
@@ -73,7 +90,9 @@ class Generator:
             seed=None if seed < 0 else seed,
         )
         self.search = Search(self.problem, self.settings)
-        self.config = run_config(self.problem, self.settings, {"run_id": self.run_id, "mode": self.mode})
+        self.config = run_config(
+            self.problem, self.settings, {"run_id": self.run_id, "mode": self.mode, "profile": self.problem.profile}
+        )
 
         self.pub_config = n.create_publisher(topics.RUN_CONFIG_TYPE, topics.RUN_CONFIG, LATCHED)
         self.pub_status = n.create_publisher(topics.STATUS_TYPE, topics.STATUS, DEFAULT)
@@ -89,7 +108,8 @@ class Generator:
         n.create_timer(0.01, self.step)
         n.create_timer(status_period, self.publish_status)
         n.logger.info(
-            f"run {self.run_id}: {self.problem.name}/{self.settings.algorithm} seed {self.settings.seed}, mode {self.mode}"
+            f"run {self.run_id}: {self.problem.name}/{self.settings.algorithm} seed {self.settings.seed}, "
+            f"mode {self.mode}, profile {self.problem.profile}"
         )
 
     # --- the state machine, one short slice per timer tick -------------------------------------
@@ -128,6 +148,7 @@ class Generator:
 
     def start_suite(self) -> None:
         result = self.search.result()
+        self.write_suite(result)
         self.node.logger.info(
             f"search done: {result.evaluations} evaluations, best F1 {result.best_f1:.3f}; "
             f"executing {len(result.suite)} suite scenarios"
@@ -168,7 +189,17 @@ class Generator:
         self.search.tell(Evaluation(f1, usable, reasons, metrics))
         self.batch = []
 
+    def write_suite(self, result) -> None:
+        """The suite as ``suite.json`` of a search run: clock-free, so a seed gives the same bytes."""
+        if self.suite_file:
+            path = Path(self.suite_file)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            document = {"mode": self.mode, "profile": self.problem.profile, **suite_document(self.problem, result)}
+            path.write_text(json.dumps(document, indent=2) + "\n")
+
     def finish(self) -> None:
+        if self.mode == "in_the_loop":
+            self.write_suite(self.search.result())
         self.state = "done"
         self.publish_status()
         r = self.remote

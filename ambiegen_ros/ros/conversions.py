@@ -314,12 +314,15 @@ def status_message(make: Make, now_ns: int, **fields: Any) -> Any:
     return make(topics.STATUS_TYPE, header=header(make, now_ns), **fields)
 
 
-def heartbeat_message(make: Make, worker: str, problem: str, in_flight: int, executed: int) -> Any:
+def heartbeat_message(
+    make: Make, worker: str, problem: str, in_flight: int, executed: int, extra: dict[str, Any] | None = None
+) -> Any:
+    """A worker's heartbeat; ``extra`` adds key/values (e.g. the fidelity profile it scores)."""
     return make(
         topics.WORKERS_TYPE,
         level=0,
         name=worker,
         message="busy" if in_flight else "idle",
         hardware_id=problem,
-        values=key_values(make, {"in_flight": in_flight, "executed": executed}),
+        values=key_values(make, {"in_flight": in_flight, "executed": executed, **(extra or {})}),
     )

@@ -1,7 +1,9 @@
 """Execute scenarios on the full-model simulators (the paper's RQ3 setting, ROS-free).
 
 ``full_model_executor(problem, **options)`` returns an executor whose ``execute(scenario, seed=0)``
-gives an ``Outcome`` with the problem's failure oracle applied. Options are fields of the
+gives an ``Outcome`` with the problem's failure oracle applied. In a run, the seed of scenario k is
+``scenario_seed(run seed, k)``: the noise follows the run and the scenario, never the worker that
+happens to execute it, so any number of workers gives the same outcomes. Options are fields of the
 problem's simulator config (``RobotSimConfig``, ``CarSimConfig``, ``RoomSimConfig``); an unknown
 option names the allowed ones. Scenarios that break a restriction of their problem are not
 simulated unless ``run_invalid=True`` (like the surrogate executor, they come back as
@@ -86,6 +88,13 @@ class FullModelExecutor:
         return dataclasses.asdict(self.config)
 
 
+def scenario_seed(run_seed: int, scenario_id: int) -> int:
+    """The simulator seed of one scenario of a run: distinct streams for distinct (run, scenario)
+    pairs (``run_seed + scenario_id`` would give run 3's scenario 5 the noise of run 5's scenario 3)."""
+    state = np.random.SeedSequence([int(run_seed), int(scenario_id)]).generate_state(2, np.uint32)
+    return int(state[0]) << 32 | int(state[1])
+
+
 def full_model_executor(problem: Problem, **options: Any) -> FullModelExecutor:
     """The full-model executor of ``problem``; ``options`` override simulator config fields."""
     return FullModelExecutor(problem, **options)
@@ -102,4 +111,5 @@ def timeline_lists(outcome: Outcome) -> dict[str, list[float]] | None:
     return {k: np.asarray(v, dtype=float).tolist() for k, v in outcome.timeline.items()}
 
 
-__all__ = ["FullModelExecutor", "SIMULATORS", "execute", "full_model_executor", "sim_config", "timeline_lists"]
+__all__ = ["FullModelExecutor", "SIMULATORS", "execute", "full_model_executor", "scenario_seed", "sim_config",
+           "timeline_lists"]
