@@ -192,3 +192,12 @@ def test_a_failing_run_is_reported_and_the_others_finish(tmp_path, monkeypatch):
     assert [r["algorithm"] for r in result["records"]] == ["ga"]
     assert not (tmp_path / "exp" / "runs" / "random-000.json").exists()  # --resume will run it
     assert [r["algorithm"] for r in read_csv(tmp_path / "exp" / "results.csv")] == ["ga"]
+
+
+def test_break_even_execution_time_by_hand():
+    from ambiegen_ros.experiment import break_even_seconds
+
+    # search: every execution fails, 1.1 s of search per execution; random: 1 in 10 fails, free to generate.
+    # 1 / (1.1 + c) = 0.1 / c  ->  c = 0.11 / 0.9
+    assert break_even_seconds({"rate": 1.0, "gen": 1.1}, {"rate": 0.1, "gen": 0.0}) == pytest.approx(0.11 / 0.9)
+    assert break_even_seconds({"rate": 0.1, "gen": 1.0}, {"rate": 0.1, "gen": 0.0}) is None
