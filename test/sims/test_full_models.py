@@ -27,7 +27,11 @@ ROOT = Path(__file__).resolve().parents[2]
 
 @pytest.fixture(scope="module")
 def problems():
-    return {name: get_problem(name) for name in ("robot", "vehicle", "thermostat")}
+    """The default (replication) profile, except the vehicle: the hand-made roads below are drawn
+    with the refined road builder (20 m turn radius, heading north), where the hairpin is on the map."""
+    out = {name: get_problem(name) for name in ("robot", "thermostat")}
+    out["vehicle"] = get_problem("vehicle", {"profile": "refined"})
+    return out
 
 
 def scenario(problem, elements):
@@ -452,15 +456,16 @@ def test_execute_json_shape_and_bad_input(tmp_path, capsys, problems):
 
     p = problems["vehicle"]
     good = write(tmp_path, "hairpin.json", road(p, HAIRPIN).to_dict())
-    assert main(["execute", good, "--json", "--seed", "3"]) == 0
+    assert main(["execute", good, "--json", "--seed", "3", "--profile", "refined"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert list(out) == ["problem", "valid", "failed", "failure_kind", "metrics"]
+    assert list(out) == ["problem", "valid", "failed", "failure_kind", "metrics", "profile"]
+    assert out["profile"] == "refined"
     assert out["problem"] == "vehicle" and out["valid"] is True
     assert out["failed"] is True and out["failure_kind"] == "out_of_lane"
     assert out["metrics"]["seed"] == 3 and out["metrics"]["max_oob"] > 0.85
 
     gentle = write(tmp_path, "gentle.json", road(p, GENTLE).to_dict())
-    assert main(["execute", gentle, "--json", "--set", "controller=\"stanley\""]) == 0
+    assert main(["execute", gentle, "--json", "--profile", "refined", "--set", "controller=\"stanley\""]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["failed"] is False and out["failure_kind"] is None
 
