@@ -41,7 +41,12 @@ from test_full_models import GENTLE, HAIRPIN, corridor_map, easy_robot_elements 
 
 @pytest.fixture(scope="module")
 def problems():
-    return {name: get_problem(name) for name in ("robot", "vehicle", "thermostat")}
+    """The hand-made maps and roads are drawn for the refined profile (the replication profile's
+    free band keeps walls off the goal, and its roads turn off the map before the hairpin)."""
+    return {name: get_problem(name, {"profile": PROFILE[name]}) for name in ("robot", "vehicle", "thermostat")}
+
+
+PROFILE = {"robot": "refined", "vehicle": "refined", "thermostat": "replication"}
 
 
 def scenario(problem, elements):
@@ -317,8 +322,10 @@ class Driver:
 
 
 def start_pair(procs: Procs, problem: str, scale: float, **adapter) -> None:
-    procs.start("external", "sim_nodes.external_sim", problem=problem, time_scale=scale)
-    procs.start("adapter", "sim_nodes.sut_adapter", problem=problem, time_scale=scale, worker_id="sut", **adapter)
+    profile = PROFILE[problem]
+    procs.start("external", "sim_nodes.external_sim", problem=problem, time_scale=scale, profile=profile)
+    procs.start("adapter", "sim_nodes.sut_adapter", problem=problem, time_scale=scale, worker_id="sut",
+                profile=profile, **adapter)
 
 
 @pytestmark_dds
@@ -360,7 +367,7 @@ def test_vehicle_campaign_through_the_adapter_matches_the_full_model(graph, prob
     assert [r and r.failure_kind for r in got] == ["out_of_lane", "none"], procs.logs()
     # a small surrogate campaign whose final suite the generator hands to the adapter as a worker
     t0 = time.monotonic()
-    gen = procs.start("generator", "ambiegen_ros.nodes.generator", problem="vehicle", evaluations=60,
+    gen = procs.start("generator", "ambiegen_ros.nodes.generator", problem="vehicle", profile="refined", evaluations=60,
                       population=12, seed=4, run_id="camp", min_subscribers=2, min_workers=1,
                       max_in_flight=2, result_timeout=30.0)
     try:
