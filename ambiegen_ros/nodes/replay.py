@@ -67,7 +67,9 @@ def compare(old: Outcome | None, new: Outcome) -> dict[str, Any]:
     else:
         deltas = {k: new.objectives[k] - v for k, v in old.objectives.items() if k in new.objectives}
         entry["objective_deltas"] = deltas
-        entry["change"] = "objectives" if any(abs(d) > 1e-9 for d in deltas.values()) else "none"
+        moved = any(abs(d) > 1e-9 for d in deltas.values())
+        # another model measures other things: "none" only when the same objectives agree
+        entry["change"] = "objectives" if moved or set(old.objectives) != set(new.objectives) else "none"
     return entry
 
 
