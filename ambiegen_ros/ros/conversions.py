@@ -135,14 +135,16 @@ def scenario_message(make: Make, now_ns: int, problem: Problem, scenario: Scenar
         # Straight from the genome: problem.environment() would simulate the whole schedule
         # (~10 ms) only to hand back these columns. The room starts at the first set point, as in
         # ThermostatProblem.environment (a test keeps the two in step).
+        # In the replication profile, elements past the 24th hour are not part of the day.
         col = {name: j for j, name in enumerate(problem.codec.names)}
+        day = cells[: int(problem.scored_lengths(cells[None], np.array([len(cells)]))[0])]
         return make(
             typename,
             meta=meta_msg,
-            setpoints=np.ascontiguousarray(cells[:, col["temperature"]], dtype=np.float64),
-            durations_min=np.rint(cells[:, col["duration"]]).astype(np.uint32),
-            room_models=np.rint(cells[:, col["model"]]).astype(np.uint8),
-            initial_temperature=float(cells[0, col["temperature"]]) if len(cells) else 0.0,
+            setpoints=np.ascontiguousarray(day[:, col["temperature"]], dtype=np.float64),
+            durations_min=np.rint(day[:, col["duration"]]).astype(np.uint32),
+            room_models=np.rint(day[:, col["model"]]).astype(np.uint8),
+            initial_temperature=float(day[0, col["temperature"]]) if len(day) else 0.0,
         )
     env = problem.environment(scenario)
     if problem.name == "robot":

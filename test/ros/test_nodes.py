@@ -197,6 +197,10 @@ def test_thermostat_message_matches_its_environment():
     reg = get_registry()
     problem = get_problem("thermostat")
     X = problem.codec.join(*problem.sample(20, np.random.default_rng(4)))
+    # a day running past 24 h: the replication profile's schedule (and message) stops at 24 h
+    long_day = problem.codec.to_row(problem.parse({"problem": "thermostat", "elements": [
+        {"temperature": 20 + i % 3, "duration": 240, "model": 1 + i} for i in range(7)]}))
+    X = np.vstack([X, long_day])
     for i, row in enumerate(X):
         scenario = problem.codec.from_row(row)
         env = problem.environment(scenario)
@@ -205,6 +209,7 @@ def test_thermostat_message_matches_its_environment():
         assert list(msg.durations_min) == list(env.durations)
         assert list(msg.room_models) == list(env.models)
         assert msg.initial_temperature == env.initial_temperature
+        assert sum(msg.durations_min) <= 1440
         back, info = conversions.scenario_from_message(problem, reg.deserialize(reg.serialize(msg, msg.__msgtype__), msg.__msgtype__))
         assert back.elements == scenario.elements and info["scenario_id"] == i
 
