@@ -356,7 +356,7 @@ class FullModelTally:
         """Already executed (distance 0 within the attribute tolerances)?"""
         from .core.diversity import nearest_distance
 
-        G, L = self.problem.codec.split(row[None, :])
+        G, L = self.problem.canonical(*self.problem.codec.split(row[None, :]))
         if not len(self._executed[1]):
             return False
         return bool(nearest_distance(G, L, *self._executed, self.problem.codec.attributes)[0] == 0)
@@ -379,7 +379,7 @@ class FullModelTally:
             self.rejected += 1
             return
         self.executions += 1
-        G, L = codec.split(row[None, :])
+        G, L = self.problem.canonical(*codec.split(row[None, :]))
         self._executed = (np.concatenate([self._executed[0], G]), np.concatenate([self._executed[1], L]))
         self.kinds[outcome.failure_kind] = self.kinds.get(outcome.failure_kind, 0) + 1
         if outcome.failed:

@@ -117,15 +117,27 @@ class ScenarioMutation(Mutation):
 
 
 class ScenarioDuplicateElimination(DuplicateElimination):
-    """Exact duplicates of the canonical genome (padding zeroed), via hashing the row bytes."""
+    """Duplicates of the same environment: equal canonical genomes (``Problem.canonical``: padding
+    zeroed, cells the environment ignores set to one value), compared by their row bytes.
+
+    Without the canonical form a population can fill with clones that differ only in ignored
+    cells (a straight's angle), which the replication code's encoding cannot even express.
+    """
+
+    def __init__(self, case: Problem | None = None):
+        super().__init__()
+        self.case = case
+
+    def _keys(self, pop) -> list[bytes]:
+        X = np.asarray(pop.get("X"), dtype=float)
+        if self.case is not None and len(X):
+            codec = self.case.codec
+            X = codec.join(*self.case.canonical(*codec.split(X)))
+        return [row.tobytes() for row in X]
 
     def _do(self, pop, other, is_duplicate):
-        def key(ind):
-            return np.asarray(ind.get("X"), dtype=float).tobytes()
-
-        seen = set() if other is None else {key(ind) for ind in other}
-        for i, ind in enumerate(pop):
-            k = key(ind)
+        seen = set() if other is None else set(self._keys(other))
+        for i, k in enumerate(self._keys(pop)):
             if k in seen:
                 is_duplicate[i] = True
             elif other is None:

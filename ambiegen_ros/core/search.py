@@ -129,7 +129,7 @@ class Search:
             sampling=ScenarioSampling(),
             crossover=OnePointCrossover(prob=s.crossover_rate),
             mutation=ScenarioMutation(prob=s.mutation_rate),
-            eliminate_duplicates=ScenarioDuplicateElimination(),
+            eliminate_duplicates=ScenarioDuplicateElimination(problem),
         )
         self._algorithm = NSGA2(**operators) if mo else GA(**operators)
         self._algorithm.setup(self._pymoo_problem, termination=NoTermination(), seed=s.seed, verbose=False)
@@ -220,18 +220,22 @@ class Search:
         return self.result()
 
     # --- internals -----------------------------------------------------------------------
+    def _split(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Canonical ``(G, lengths)`` of genome rows: diversity counts what the environment sees."""
+        return self.problem.canonical(*self.codec.split(X))
+
     def _f2(self, pop: Population) -> np.ndarray:
         attrs = self.codec.attributes
-        G, lengths = self.codec.split(pop.get("X"))
+        G, lengths = self._split(pop.get("X"))
         f2 = np.empty(len(pop))
         refs = [ind.get("ref") for ind in pop]
         has_ref = np.array([r is not None for r in refs])
         if self.settings.reference == "front" and self._algorithm is not None and self._algorithm.pop is not None:
             front = self._current_front(self._algorithm.pop)
-            Gf, lf = self.codec.split(front.get("X")) if len(front) else (G[:0], lengths[:0])
+            Gf, lf = self._split(front.get("X")) if len(front) else (G[:0], lengths[:0])
             return nearest_distance(G, lengths, Gf, lf, attrs)
         if has_ref.any():
-            Gr, lr = self.codec.split(np.stack([r for r in refs if r is not None]))
+            Gr, lr = self._split(np.stack([r for r in refs if r is not None]))
             f2[has_ref] = jaccard_distance(G[has_ref], lengths[has_ref], Gr, lr, attrs)
         orphans = np.flatnonzero(~has_ref)
         if len(orphans) == 1:
@@ -291,7 +295,7 @@ class Search:
                 "scenario": self.codec.from_row(ind.get("X")).to_dict(),
             }
             suite.append(entry)
-        G, lengths = self.codec.split(X)
+        G, lengths = self._split(X)
         return SearchResult(
             settings=self.settings,
             suite=suite,

@@ -136,6 +136,15 @@ class Problem(ABC):
     def environment(self, scenario: Scenario) -> Any:
         """'TC to environment': the concrete environment (schedule, map, road) of one scenario."""
 
+    def canonical(self, G: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The canonical genomes of a batch: two genomes of the same environment become equal.
+
+        Default: as they are. A problem whose environment ignores some cells (a straight's angle,
+        a schedule's elements past 24 h) sets them to one value; the search's duplicate
+        elimination compares canonical genomes.
+        """
+        return G, lengths
+
     # --- conveniences built on the three parts ---------------------------------------------------
     def parse(self, data: dict[str, Any]) -> Scenario:
         return self.codec.validate(data)

@@ -474,6 +474,15 @@ class ThermostatProblem(Problem):
         ends = np.cumsum(np.where(used, G[:, :, DUR], 0.0), axis=1)
         return np.minimum(np.sum(ends <= self.config.horizon_minutes + 1e-9, axis=1), lengths)
 
+    def canonical(self, G: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Replication: elements past 24 h are not part of the day (the replication code drops them
+        from every offspring), so they are dropped here too."""
+        if not self.config.replication:
+            return G, lengths
+        scored = self.scored_lengths(G, lengths)
+        G = np.where((np.arange(G.shape[1])[None, :] < scored[:, None])[:, :, None], G, 0.0)
+        return G, scored
+
     def check(self, G: np.ndarray, lengths: np.ndarray):
         """Restrictions (and domains) of the profile -> validity, reason per row, scored duration
         [min] and scored lengths (see ``scored_lengths``).

@@ -1429,6 +1429,15 @@ class VehicleProblem(Problem):
     def replication(self) -> bool:
         return self.profile == "replication"
 
+    def canonical(self, G: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A straight ignores its angle and a turn its length: both set to their domain's low."""
+        G = np.array(G, dtype=float)
+        used = np.arange(G.shape[1])[None, :] < np.asarray(lengths)[:, None]
+        straight = G[:, :, TYPE] == STRAIGHT
+        G[:, :, ANGLE] = np.where(straight & used, self.attributes[ANGLE].low, G[:, :, ANGLE])
+        G[:, :, LENGTH] = np.where(~straight & used, self.attributes[LENGTH].low, G[:, :, LENGTH])
+        return G, lengths
+
     # --- sampling ------------------------------------------------------------------------------------
     def _types(self, n: int, m: int, rng: np.random.Generator) -> np.ndarray:
         """Segment types: a Markov chain from ``first_type`` (or uniform)."""

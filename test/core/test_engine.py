@@ -134,6 +134,41 @@ def test_duplicate_elimination_removes_exact_copies():
     assert len(kept) == 4
 
 
+@pytest.mark.parametrize("profile", ["replication", "refined"])
+def test_duplicates_of_the_same_road_are_removed(profile):
+    """Genomes differing only in cells the road ignores (a straight's angle, a turn's length) are
+    one environment: same F1, and the search keeps only one of them."""
+    from ambiegen_ros.problems import get_problem
+
+    vehicle = get_problem("vehicle", {"profile": profile})
+    X = vehicle.sample_rows(40, np.random.default_rng(5))
+    G, L = vehicle.codec.split(X)
+    twin = G.copy()
+    straight = twin[:, :, 0] == 0
+    used = np.arange(G.shape[1])[None, :] < L[:, None]
+    twin[:, :, 2] = np.where(straight & used, 85 - (twin[:, :, 2] - 5), twin[:, :, 2])  # another angle
+    twin[:, :, 1] = np.where(~straight & used, 55 - twin[:, :, 1], twin[:, :, 1])  # another length
+    Y = vehicle.codec.join(twin, L)
+    changed = np.any(X != Y, axis=1)
+    assert changed.sum() > 30
+    np.testing.assert_array_equal(vehicle.evaluate_rows(X).f1, vehicle.evaluate_rows(Y).f1)
+    kept = ScenarioDuplicateElimination(vehicle).do(Population.new("X", np.concatenate([X, Y])))
+    assert len(kept) == len(X)
+    assert len(ScenarioDuplicateElimination().do(Population.new("X", np.concatenate([X, Y])))) == len(X) + changed.sum()
+
+
+def test_thermostat_days_equal_within_24h_are_duplicates_in_the_replication_profile():
+    from ambiegen_ros.problems import get_problem
+
+    day = [{"temperature": 20, "duration": 240, "model": 1}] * 6
+    for profile, duplicates in (("replication", True), ("refined", False)):
+        p = get_problem("thermostat", {"profile": profile})
+        a = p.codec.to_row(p.parse({"problem": "thermostat", "elements": day + [{"temperature": 21, "duration": 60, "model": 2}]}))
+        b = p.codec.to_row(p.parse({"problem": "thermostat", "elements": day + [{"temperature": 22, "duration": 90, "model": 3}]}))
+        kept = ScenarioDuplicateElimination(p).do(Population.new("X", np.stack([a, b])))
+        assert len(kept) == (1 if duplicates else 2)
+
+
 # --- Jaccard ------------------------------------------------------------------------------------
 def test_jaccard_is_zero_with_itself_and_symmetric():
     X = sample(5, 40)
