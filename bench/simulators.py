@@ -4,6 +4,13 @@ Usage: python bench/simulators.py [--problems robot vehicle thermostat] [--n N] 
 Executes N sampled valid scenarios per problem with the default simulator settings (one process,
 one core) and prints a table; writes bench/results/simulators.json. Targets (issue 4): robot
 >= 50x real time, car >= 100x, thermostat >= 10,000x.
+
+``--robot-failures`` instead measures how often the robot's full model (Nearness Diagram driver,
+the paper's monitors, the fair time limit) fails on N random valid maps and on the N highest-F1
+maps of a GA search (``--evaluations``, as ``ambiegen search --problem robot --algorithm ga``),
+with the failure kinds, the ratio top / random, the real-time factor and the rank correlation of
+surrogate F1 with the outcome; writes bench/results/robot_failures.json. ``--planner gap`` runs the
+earlier local planner instead.
 """
 from __future__ import annotations
 
@@ -35,9 +42,9 @@ def valid_scenarios(problem, n: int, seed: int):
     return out[:n]
 
 
-def bench(name: str, n: int, seed: int) -> dict:
+def bench(name: str, n: int, seed: int, options: dict | None = None) -> dict:
     problem = get_problem(name)
-    executor = full_model_executor(problem)
+    executor = full_model_executor(problem, **(options or {}))
     scenarios = valid_scenarios(problem, n, seed)
     executor.execute(scenarios[0])  # warm-up (imports, caches)
     simulated = wall = 0.0
@@ -62,17 +69,125 @@ def bench(name: str, n: int, seed: int) -> dict:
     }
 
 
+def top_scenarios(problem, n: int, evaluations: int, seed: int):
+    """The n highest-F1 distinct valid scenarios evaluated by a GA search (the surrogate's picks)."""
+    from ambiegen_ros.core.search import Search, SearchSettings
+
+    search = Search(problem, SearchSettings(algorithm="ga", evaluations=evaluations, seed=seed))
+    rows, f1 = [], []
+    while True:
+        X = search.ask()
+        if X is None:
+            break
+        ev = problem.evaluate_rows(X)
+        search.tell(ev)
+        rows.append(X[ev.valid])
+        f1.append(ev.f1[ev.valid])
+    X, f1 = np.concatenate(rows), np.concatenate(f1)
+    X, first = np.unique(X, axis=0, return_index=True)
+    order = np.argsort(-f1[first], kind="stable")[:n]
+    return problem.codec.from_rows(X[order]), f1[first][order], search.evaluations
+
+
+def _spearman(a, b) -> float | None:
+    from scipy.stats import spearmanr
+
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if len(a) < 3 or np.ptp(a) == 0 or np.ptp(b) == 0:
+        return None
+    return round(float(spearmanr(a, b).statistic), 3)
+
+
+def execute_group(executor, scenarios, f1) -> dict:
+    """Run each scenario on the full model; failure rate, kinds and speed of the group."""
+    rows, simulated, wall = [], 0.0, 0.0
+    for i, (scenario, score) in enumerate(zip(scenarios, f1)):
+        start = time.perf_counter()
+        out = executor.execute(scenario, seed=i)
+        wall += time.perf_counter() - start
+        m = out.metrics
+        simulated += float(m["time"])
+        kind = out.failure_kind if out.failure_kind == "none" else f"{out.failure_kind}:{m.get('stall_cause') or '-'}"
+        rows.append({"f1": round(float(score), 2), "failed": bool(out.failed), "kind": kind, "time": round(m["time"], 1),
+                     "time_limit": round(m["time_limit"], 1), "route_length": m["route_length"],
+                     "waypoints": f"{m['waypoints_reached']}/{max(m['waypoints'] - 1, 0)}",
+                     "min_clearance": m["min_clearance"], "failure_point": out.failure_point})
+    failed = [r["failed"] for r in rows]
+    return {
+        "n": len(rows),
+        "failures": int(sum(failed)),
+        "failure_rate": round(sum(failed) / max(len(rows), 1), 3),
+        "kinds": dict(Counter(r["kind"] for r in rows)),
+        "mean_f1": round(float(np.mean(f1)), 2),
+        "mean_route_length": round(float(np.mean([r["route_length"] or 0 for r in rows])), 1),
+        "simulated_s": round(simulated, 1),
+        "wall_s": round(wall, 2),
+        "realtime_factor": round(simulated / wall, 1) if wall > 0 else None,
+        "runs": rows,
+    }
+
+
+def robot_failures(n: int, evaluations: int, seed: int, planner: str, route_diagonal: str | None = None) -> dict:
+    problem = get_problem("robot")
+    executor = full_model_executor(problem, planner=planner, route_diagonal=route_diagonal)
+    random_sc = valid_scenarios(problem, n, seed)
+    random_f1 = problem.evaluate_scenarios(random_sc).f1
+    top_sc, top_f1, spent = top_scenarios(problem, n, evaluations, seed)
+    executor.execute(random_sc[0])  # warm-up
+    groups = {"random": execute_group(executor, random_sc, random_f1),
+              "top": execute_group(executor, top_sc, top_f1)}
+    both = groups["random"]["runs"] + groups["top"]["runs"]
+    rate_r, rate_t = groups["random"]["failure_rate"], groups["top"]["failure_rate"]
+    simulated = sum(g["simulated_s"] for g in groups.values())
+    wall = sum(g["wall_s"] for g in groups.values())
+    return {
+        "profile": problem.profile,
+        "planner": planner,
+        "route_diagonal": route_diagonal or problem.config.diagonal,
+        "search": {"algorithm": "ga", "evaluations": spent, "seed": seed},
+        **groups,
+        "ratio_top_vs_random": round(rate_t / rate_r, 2) if rate_r > 0 else None,
+        "spearman_f1_failed": _spearman([r["f1"] for r in both], [r["failed"] for r in both]),
+        "realtime_factor": round(simulated / wall, 1),
+        "config": executor.config_dict(),
+    }
+
+
+def print_failures(r: dict) -> None:
+    print(f"robot full model ({r['planner']}, route diagonal rule {r['route_diagonal']}, profile {r['profile']}), "
+          f"GA search of {r['search']['evaluations']} "
+          f"evaluations, seed {r['search']['seed']}")
+    print(f"{'maps':<8} {'n':>3} {'mean F1':>8} {'failed':>7} {'rate':>6}  kinds")
+    for name in ("random", "top"):
+        g = r[name]
+        print(f"{name:<8} {g['n']:>3} {g['mean_f1']:>8.1f} {g['failures']:>7} {g['failure_rate']:>6.0%}  {g['kinds']}")
+    print(f"ratio top / random: {r['ratio_top_vs_random']}; Spearman(F1, failed): {r['spearman_f1_failed']}; "
+          f"{r['realtime_factor']:.0f}x real time")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--problems", nargs="+", default=list(TARGETS), choices=list(TARGETS))
-    ap.add_argument("--n", type=int, help="scenarios per problem (default: robot 8, vehicle 40, thermostat 200)")
+    ap.add_argument("--n", type=int, help="scenarios per problem (default: robot 8, vehicle 40, thermostat 200; "
+                                          "--robot-failures: 40 per group)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--robot-failures", action="store_true", help="robot failure rates: random vs top-F1 maps")
+    ap.add_argument("--evaluations", type=int, default=4000, help="GA budget of --robot-failures")
+    ap.add_argument("--planner", default="nd", choices=["nd", "gap"], help="the robot's local planner")
+    ap.add_argument("--route-diagonal", choices=["both_free", "one_free", "always"],
+                    help="A* diagonal rule of the robot's route (default: the problem's)")
     args = ap.parse_args(argv)
+    if args.robot_failures:
+        r = robot_failures(args.n or 40, args.evaluations, args.seed, args.planner, args.route_diagonal)
+        print_failures(r)
+        suffix = "".join(f"_{v}" for v in (args.planner if args.planner != "nd" else None, args.route_diagonal) if v)
+        print(f"-> {write_result('robot_failures' + suffix, r)}")
+        return 0
     figures = {}
     print(f"{'simulator':<11} {'n':>4} {'simulated s':>12} {'wall s':>8} {'x real time':>12} "
           f"{'target':>8} {'per min':>8}  outcomes")
     for name in args.problems:
-        r = bench(name, args.n or DEFAULT_N[name], args.seed)
+        r = bench(name, args.n or DEFAULT_N[name], args.seed, {"planner": args.planner} if name == "robot" else None)
         figures[name] = r
         flag = "ok" if r["meets_target"] else "BELOW"
         print(f"{name:<11} {r['scenarios']:>4} {r['simulated_s']:>12.0f} {r['wall_s']:>8.2f} "

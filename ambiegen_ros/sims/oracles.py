@@ -100,7 +100,8 @@ class RobotJudge(_Judge):
         self.origin = (float(origin[0]), float(origin[1]))
         self.diagonal = diagonal
         self.route_length = route_length
-        self.walls = robot.WallGeometry(self.grid, self.resolution, self.cfg.clearance_cells, self.origin)
+        self.walls = robot.WallGeometry(self.grid, self.resolution, self.cfg.clearance_cells, self.origin,
+                                        engine=self.cfg.engine)
         self.monitors: robot.RobotMonitors | None = None
         self._t: list[np.ndarray] = []
         self._xy: list[np.ndarray] = []
@@ -117,7 +118,8 @@ class RobotJudge(_Judge):
     def _start(self, x0: float, y0: float) -> None:
         res, (ox, oy) = self.resolution, self.origin
         cell = lambda px, py: (int(math.floor((px - ox) / res)), int(math.floor((py - oy) / res)))  # noqa: E731
-        waypoints, length = robot.plan_route(self.grid, res, cell(x0, y0), cell(*self.goal), self.cfg, self.diagonal)
+        waypoints, length = robot.plan_route(self.grid, res, cell(x0, y0), cell(*self.goal), self.cfg,
+                                             self.cfg.route_diagonal or self.diagonal)
         if self.route_length is not None:
             length = self.route_length
         self.monitors = robot.RobotMonitors(self.cfg, self.goal, self.cfg.time_limit(length),

@@ -12,10 +12,12 @@ of the surrogate's path-length fitness:
 * *Laser*: ``beams`` rays over ``fov_deg``, ``laser_range`` metres, cast exactly on the occupancy
   grid (all rays at once), plus optional Gaussian noise on the returns from the run's seeded
   generator; a beam that hits nothing reads the maximum range, which is no obstacle.
-* *Route*: A* (``problems.robot.astar``, the problem's diagonal rule) on the grid inflated by
-  ``radius``, simplified by Ramer-Douglas-Peucker (``rdp_epsilon``); a controller sends the
-  waypoints one by one and moves on within ``waypoint_tolerance`` of the current one, like the
-  paper's waypoint follower. No route leaves the robot standing (``outcome = "no_route"``).
+* *Route*: A* (``problems.robot.astar``) on the grid inflated by ``radius``, with the problem's
+  diagonal rule (the route its surrogate scored; ``route_diagonal`` overrides it: the replication
+  profile's rule ``always`` also steps diagonally between two wall cells that touch at a corner,
+  a gap no robot passes), simplified by Ramer-Douglas-Peucker (``rdp_epsilon``); a controller
+  sends the waypoints one by one and moves on within ``waypoint_tolerance`` of the current one,
+  like the paper's waypoint follower. No route leaves the robot standing (``outcome = "no_route"``).
 * *Local planner* (``planner``): ``"nd"`` (default) is the Nearness Diagram method with Player's
   ``nd`` driver around it and the paper's ``player.cfg`` numbers (``sims.nearness_diagram``):
   0.3 m/s and 30 deg/s at most, 0.1 m/s and 10 deg/s at least, goal tolerance 0.1 m, avoid_dist
@@ -52,11 +54,12 @@ from typing import Any
 import numpy as np
 
 from ..core.attributes import ScenarioError
-from ..problems.robot import astar, inflate
+from ..problems.robot import DIAGONAL_RULES, astar, inflate
 from .nearness_diagram import NDDriver, NDParams, NearnessDiagram
 from .outcome import Outcome
 
 PLANNERS = ("nd", "gap")
+ENGINES = ("auto", "numba", "numpy")
 STALL_CAUSES = ("contact", "emergency_stop", "no_region", "no_progress", "no_motion", "no_route", "reported")
 
 
@@ -79,6 +82,7 @@ class RobotSimConfig:
     beams: int = 181
     laser_noise: float = 0.01  # standard deviation of range noise [m]; 0 = exact
     # route
+    route_diagonal: str | None = None  # A* diagonal rule of the route: None = the problem's (the route it scored)
     rdp_epsilon: float = 0.5  # Ramer-Douglas-Peucker tolerance [m]
     waypoint_tolerance: float = 0.5  # the controller moves on this close to a waypoint [m]
     # nearness diagram (Player's nd driver, the paper's player.cfg)
@@ -113,6 +117,7 @@ class RobotSimConfig:
     timeout_margin: float = 60.0  # ... + this [s]
     clearance_cells: int = 3  # clearance is measured to walls within this many cells (capped beyond)
     run_invalid: bool = False  # also simulate scenarios the problem calls invalid
+    engine: str = "auto"  # laser and body clearance: numba (compiled, same numbers) | numpy | auto
 
     def __post_init__(self):
         if self.planner not in PLANNERS:
@@ -137,6 +142,10 @@ class RobotSimConfig:
             raise ScenarioError("option.cruise_speed", "above max_speed", f"<= {self.max_speed}")
         if self.nd_min_speed > self.cruise_speed or self.nd_min_turn_rate_deg > self.nd_turn_rate_deg:
             raise ScenarioError("option.nd_min_speed", "minimum speeds above the maximum ones")
+        if self.engine not in ENGINES:
+            raise ScenarioError("option.engine", f"unknown engine {self.engine!r}", "|".join(ENGINES))
+        if self.route_diagonal is not None and self.route_diagonal not in DIAGONAL_RULES:
+            raise ScenarioError("option.route_diagonal", f"unknown rule {self.route_diagonal!r}", "|".join(DIAGONAL_RULES))
         if self.laser_buffer < 1:
             raise ScenarioError("option.laser_buffer", "must be >= 1")
         if self.nd_sectors < 8 or self.nd_sectors % 4:
@@ -181,21 +190,26 @@ def rdp(points: np.ndarray, epsilon: float) -> np.ndarray:
 
 
 def cast_rays(grid: np.ndarray, resolution: float, x: float, y: float, angles: np.ndarray,
-              max_range: float, padded: np.ndarray | None = None) -> np.ndarray:
+              max_range: float, padded: np.ndarray | None = None, engine: str = "auto") -> np.ndarray:
     """Exact range to the first occupied cell along each ray (grid ``[y, x]``; outside = wall).
 
     All rays at once: a ray's grid-line crossings (every cell it enters) are ``first + k / |cos|``
     and ``first + k / |sin|``; sorted, they split it into segments, each inside one cell (looked up
     at the segment's middle); the range is where the first occupied segment starts, or
     ``max_range``. ``padded`` (the grid with a ring of wall, see ``pad_grid``) can be passed to save
-    building it on every call.
+    building it on every call. ``engine``: "numba" (a compiled loop over rays, the same numbers),
+    "numpy", or "auto" (numba when importable).
     """
     gp = pad_grid(grid) if padded is None else padded
     Hp, Wp = gp.shape
     angles = np.asarray(angles, dtype=float)
     px, py = x / resolution + 1.0, y / resolution + 1.0  # padded-grid cell units
-    dx, dy = np.cos(angles)[:, None], np.sin(angles)[:, None]
     limit = max_range / resolution
+    if _use_numba(engine):
+        out = np.empty(len(angles))
+        _kernels()["rays"](gp, px, py, np.cos(angles), np.sin(angles), limit, out)
+        return out * resolution
+    dx, dy = np.cos(angles)[:, None], np.sin(angles)[:, None]
     far = 2.0 * limit + 4.0
     k = np.arange(int(limit) + 2)[None, :]
     with np.errstate(divide="ignore"):
@@ -269,6 +283,135 @@ def clearances(grid: np.ndarray, resolution: float, x: np.ndarray, y: np.ndarray
     return np.where(off_grid, 0.0, out)
 
 
+# --- compiled loops (numba, optional) ------------------------------------------------------------
+def _rays_kernel(gp, px, py, dx, dy, limit, out):
+    """``cast_rays`` one ray after another (compiled by numba): the two sorted crossing sequences
+    merged instead of sorted together, the same segment midpoints and cells, so the same ranges."""
+    Hp, Wp = gp.shape
+    far = 2.0 * limit + 4.0
+    K = int(limit) + 2
+    fx, fy = math.floor(px), math.floor(py)
+    for r in range(len(dx)):
+        ax, ay = abs(dx[r]), abs(dy[r])
+        inv_x = 1.0 / ax if ax != 0.0 else math.inf
+        inv_y = 1.0 / ay if ay != 0.0 else math.inf
+        first_x = fx + 1 - px if dx[r] > 0 else px - fx
+        first_y = fy + 1 - py if dy[r] > 0 else py - fy
+        ix = iy = 0
+        prev = 0.0
+        result = limit
+        for _ in range(2 * K):
+            tx = math.inf
+            if ix < K:
+                tx = min((first_x + ix) * min(inv_x, far), far) if math.isfinite(inv_x) else far
+            ty = math.inf
+            if iy < K:
+                ty = min((first_y + iy) * min(inv_y, far), far) if math.isfinite(inv_y) else far
+            if tx <= ty:
+                nxt = tx
+                ix += 1
+            else:
+                nxt = ty
+                iy += 1
+            mid = (prev + nxt) / 2
+            cx = math.floor(px + mid * dx[r])
+            cy = math.floor(py + mid * dy[r])
+            cx = 0.0 if cx < 0 else (Wp - 1.0 if cx > Wp - 1 else cx)
+            cy = 0.0 if cy < 0 else (Hp - 1.0 if cy > Hp - 1 else cy)
+            if prev < limit and gp[int(cy), int(cx)]:
+                result = prev
+                break
+            prev = nxt
+        out[r] = min(result, limit)
+
+
+def _clearance_kernel(padded, boundary, corner, res, ox, oy, cap, window, reach, fp, x, y, c, s):
+    """``WallGeometry.clearance_at`` as loops (compiled by numba), operation for operation."""
+    Hp, Wp = padded.shape
+    P = fp.shape[0]
+    vx = np.empty(P)
+    vy = np.empty(P)
+    in_wall = False
+    for p in range(P):
+        vx[p] = x + c * fp[p, 0] - s * fp[p, 1]
+        vy[p] = y + s * fp[p, 0] + c * fp[p, 1]
+        ci = min(max(int(math.floor((vx[p] - ox) / res)) + 1, 0), Wp - 1)
+        cj = min(max(int(math.floor((vy[p] - oy) / res)) + 1, 0), Hp - 1)
+        if padded[cj, ci]:
+            in_wall = True
+    if in_wall:
+        dist = 0.0
+    else:
+        dist = cap
+        i = int(math.floor((x - ox) / res)) + 1
+        j = int(math.floor((y - oy) / res)) + 1
+        for jj in range(max(j - window, 0), min(j + window + 1, Hp)):
+            for ii in range(max(i - window, 0), min(i + window + 1, Wp)):
+                if boundary[jj, ii]:
+                    lo_x = (ii - 1) * res + ox
+                    lo_y = (jj - 1) * res + oy
+                    for p in range(P):
+                        gx = max(max(lo_x - vx[p], vx[p] - lo_x - res), 0.0)
+                        gy = max(max(lo_y - vy[p], vy[p] - lo_y - res), 0.0)
+                        dist = min(dist, math.hypot(gx, gy))
+    Hc, Wc = corner.shape
+    i = int(math.floor((x - ox) / res))
+    j = int(math.floor((y - oy) / res))
+    near = (max(dist, 0.0) + reach) ** 2
+    best = dist
+    for jj in range(max(j - window, 0), min(j + window + 2, Hc)):
+        for ii in range(max(i - window, 0), min(i + window + 2, Wc)):
+            if not corner[jj, ii]:
+                continue
+            dx = ii * res + ox - x
+            dy = jj * res + oy - y
+            if dx * dx + dy * dy >= near:
+                continue
+            qx = dx * c + dy * s
+            qy = dy * c - dx * s
+            edge = np.inf
+            inside = True
+            for p in range(P):
+                q = (p + 1) % P
+                ex, ey = fp[q, 0] - fp[p, 0], fp[q, 1] - fp[p, 1]
+                rx, ry = qx - fp[p, 0], qy - fp[p, 1]
+                t = min(max((rx * ex + ry * ey) / (ex * ex + ey * ey), 0.0), 1.0)
+                edge = min(edge, math.hypot(rx - t * ex, ry - t * ey))
+                if ex * ry - ey * rx < 0:
+                    inside = False
+            best = min(best, -edge if inside else edge)
+    return best
+
+
+_KERNELS: Any = None  # dict of compiled loops, or False when numba is unavailable
+
+
+def _kernels():
+    """Compile the loops on first use (cached on disk by numba); False without numba."""
+    global _KERNELS
+    if _KERNELS is None:
+        try:
+            import numba
+        except ImportError:
+            _KERNELS = False
+        else:
+            exact = numba.njit(cache=True, error_model="numpy")  # IEEE results, no Python exceptions
+            _KERNELS = {"rays": exact(_rays_kernel), "clearance": exact(_clearance_kernel)}
+    return _KERNELS
+
+
+def _use_numba(engine: str) -> bool:
+    if engine == "numpy":
+        return False
+    if engine not in ENGINES:
+        raise ScenarioError("option.engine", f"unknown engine {engine!r}", "|".join(ENGINES))
+    if _kernels():
+        return True
+    if engine == "numba":
+        raise ImportError("numba is not installed; use engine='numpy'")
+    return False
+
+
 # --- the body ------------------------------------------------------------------------------------
 def _convex_hull(points: np.ndarray) -> np.ndarray:
     """Counterclockwise convex hull (monotone chain), no repeated vertex."""
@@ -338,7 +481,9 @@ class WallGeometry:
     """
 
     def __init__(self, grid: np.ndarray, resolution: float, cells: int = 3,
-                 origin: tuple[float, float] = (0.0, 0.0), footprint: np.ndarray = PIONEER2DX):
+                 origin: tuple[float, float] = (0.0, 0.0), footprint: np.ndarray = PIONEER2DX,
+                 engine: str = "auto"):
+        self.numba = _use_numba(engine)
         self.grid = np.asarray(grid, dtype=bool)
         self.res = float(resolution)
         self.origin = (float(origin[0]), float(origin[1]))
@@ -347,7 +492,7 @@ class WallGeometry:
         self.reach = float(np.hypot(self.footprint[:, 0], self.footprint[:, 1]).max())
         self.window = int(math.ceil((self.cap + self.reach) / self.res)) + 1
         gp = pad_grid(self.grid)
-        self.padded = gp  # padded cell (j, i) is grid cell (i - 1, j - 1)
+        self.padded = np.ascontiguousarray(gp)  # padded cell (j, i) is grid cell (i - 1, j - 1)
         free = ~pad_grid(gp)  # two rings of wall: every padded cell has four neighbours
         open_side = free[:-2, 1:-1] | free[2:, 1:-1] | free[1:-1, :-2] | free[1:-1, 2:]
         self.boundary = gp & open_side
@@ -357,6 +502,9 @@ class WallGeometry:
     def clearance_at(self, x: float, y: float, yaw: float) -> float:
         fp, res, (ox, oy) = self.footprint, self.res, self.origin
         c, s = math.cos(yaw), math.sin(yaw)
+        if self.numba:
+            return _kernels()["clearance"](self.padded, self.boundary, self.corner, res, ox, oy, self.cap, self.window,
+                                           self.reach, fp, float(x), float(y), c, s)
         vx = x + c * fp[:, 0] - s * fp[:, 1]
         vy = y + s * fp[:, 0] + c * fp[:, 1]
         Hp, Wp = self.padded.shape
@@ -618,7 +766,7 @@ def drive(grid: np.ndarray, resolution: float, start_xy: tuple[float, float], go
     polyline = float(np.hypot(*np.diff(waypoints, axis=0).T).sum()) if len(waypoints) else math.inf
     time_limit = cfg.time_limit(polyline) if time_limit is None else float(time_limit)
     rng = np.random.default_rng(seed)
-    walls = WallGeometry(grid, resolution, cfg.clearance_cells)
+    walls = WallGeometry(grid, resolution, cfg.clearance_cells, engine=cfg.engine)
     padded = walls.padded
     sx, sy = float(start_xy[0]), float(start_xy[1])
     gx, gy = float(goal_xy[0]), float(goal_xy[1])
@@ -653,7 +801,7 @@ def drive(grid: np.ndarray, resolution: float, start_xy: tuple[float, float], go
             wp += 1
             if driver is not None:
                 driver.set_goal(waypoints[wp], t, (x, y, yaw))
-        ranges = cast_rays(grid, resolution, x, y, beam_angles + yaw, cfg.laser_range, padded)
+        ranges = cast_rays(grid, resolution, x, y, beam_angles + yaw, cfg.laser_range, padded, cfg.engine)
         hits = ranges < cfg.laser_range
         if cfg.laser_noise > 0:  # noise on the returns; a beam that hit nothing reads the maximum range
             noisy = np.clip(ranges + rng.normal(0.0, cfg.laser_noise, ranges.shape), 0.0, cfg.laser_range)
@@ -715,7 +863,7 @@ def simulate(problem: Any, scenario: Any, config: RobotSimConfig | None = None, 
     cfg = config or RobotSimConfig()
     env = problem.environment(scenario)
     pc = problem.config
-    run = navigate(env.grid, env.resolution, pc.start, pc.goal, cfg, seed=seed, diagonal=pc.diagonal)
+    run = navigate(env.grid, env.resolution, pc.start, pc.goal, cfg, seed=seed, diagonal=cfg.route_diagonal or pc.diagonal)
     timeline = run["timeline"]
     metrics = {
         "outcome": run["outcome"],
