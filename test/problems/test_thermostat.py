@@ -308,3 +308,21 @@ def test_small_batches_use_the_scalar_path_with_identical_results(profile):
         small = problem.evaluate(G[i : i + 5], lengths[i : i + 5])  # scalar path
         np.testing.assert_array_equal(small.f1, big.f1[i : i + 5])
         np.testing.assert_array_equal(small.metrics["max_error"], big.metrics["max_error"][i : i + 5])
+
+
+@pytest.mark.parametrize("profile", PROFILES)
+def test_compiled_and_numpy_engines_agree_bit_for_bit(profile):
+    """The numba loop (default when numba imports) and the numpy paths give the same bits."""
+    from ambiegen_ros.core.accel import numba_module
+
+    if not numba_module():
+        pytest.skip("numba is not importable here: only the numpy paths exist")
+    compiled = ThermostatProblem(profile=profile)
+    plain = ThermostatProblem(profile=profile, engine="numpy")
+    G, lengths = compiled.sample(300, np.random.default_rng(17))
+    a, b = compiled.evaluate(G, lengths), plain.evaluate(G, lengths)
+    np.testing.assert_array_equal(a.f1, b.f1)
+    np.testing.assert_array_equal(a.metrics["max_error"], b.metrics["max_error"])
+    assert a.reasons == b.reasons
+    small = plain.evaluate(G[:7], lengths[:7])  # the plain scalar loop
+    np.testing.assert_array_equal(small.f1, a.f1[:7])

@@ -1,0 +1,34 @@
+"""Optional numba acceleration, one place for every case study.
+
+numba is an accelerator, never a requirement: when it cannot be imported, for any reason (not
+installed, or broken by another package on the path), ``jit`` returns ``None`` after one warning
+and the callers use their numpy path, which gives the same results.
+"""
+from __future__ import annotations
+
+import warnings
+from typing import Any, Callable
+
+_NUMBA: Any = None  # the numba module, or False once an import failed
+
+
+def numba_module() -> Any:
+    global _NUMBA
+    if _NUMBA is None:
+        try:
+            import numba
+        except Exception as exc:  # ImportError, or a broken dependency (AttributeError, ...)
+            warnings.warn(f"numba unavailable ({type(exc).__name__}: {exc}); using the numpy paths", RuntimeWarning,
+                          stacklevel=2)
+            _NUMBA = False
+        else:
+            _NUMBA = numba
+    return _NUMBA
+
+
+def jit(func: Callable) -> Callable | None:
+    """``func`` compiled by numba (cached on disk, IEEE floating point, no Python exceptions), or None."""
+    numba = numba_module()
+    if not numba:
+        return None
+    return numba.njit(cache=True, error_model="numpy")(func)
