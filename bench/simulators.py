@@ -108,8 +108,9 @@ def execute_group(executor, scenarios, f1) -> dict:
         m = out.metrics
         simulated += float(m["time"])
         kind = out.failure_kind if out.failure_kind == "none" else f"{out.failure_kind}:{m.get('stall_cause') or '-'}"
-        rows.append({"f1": round(float(score), 2), "failed": bool(out.failed), "kind": kind, "time": round(m["time"], 1),
-                     "time_limit": round(m["time_limit"], 1), "route_length": m["route_length"],
+        rows.append({"f1": round(float(score), 2), "failed": bool(out.failed), "kind": kind,
+                     "time": round(m["time"], 1), "time_limit": round(m["time_limit"], 1),
+                     "route_length": m["route_length"],
                      "waypoints": f"{m['waypoints_reached']}/{max(m['waypoints'] - 1, 0)}",
                      "min_clearance": m["min_clearance"], "failure_point": out.failure_point})
     failed = [r["failed"] for r in rows]

@@ -5,8 +5,8 @@ The full-model simulators judge their own runs step by step. A system under test
 oracles are restated here over time-stamped samples, with the thresholds taken from the same
 config dataclasses (``RobotSimConfig``, ``CarSimConfig``, ``RoomSimConfig``) and the geometry from
 the simulators' own helpers (the robot's monitors ``robot.RobotMonitors`` and body clearance
-``robot.WallGeometry``, ``car.right_lane``, ``car.oob_fraction``, ``car._project``). Fed with a full-model timeline they give the full model's
-verdict (tested), which is what makes adapter results comparable with in-process ones.
+``robot.WallGeometry``, ``car.right_lane``, ``car.oob_fraction``, ``car._project``). Fed with a
+full-model timeline they give the full model's verdict (tested), which is what makes adapter results comparable with in-process ones.
 
 Judges are incremental: ``add(...)`` takes a batch of samples (numpy arrays; times in simulated
 seconds since the run started, increasing), works on the whole batch at once where the check
@@ -123,7 +123,8 @@ class RobotJudge(_Judge):
         if self.route_length is not None:
             length = self.route_length
         self.monitors = robot.RobotMonitors(self.cfg, self.goal, self.cfg.time_limit(length),
-                                            waypoints[1:] + self.origin if len(waypoints) else None)
+                                            waypoints[1:] + self.origin if len(waypoints) else None,
+                                            no_route=not len(waypoints))
 
     def _headings(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Heading of the motion into each sample (the previous one where it did not move)."""
@@ -155,13 +156,14 @@ class RobotJudge(_Judge):
         if self.monitors is None:
             self._start(float(x[0]), float(y[0]))
         mon = self.monitors
+        assert mon is not None
         used = len(t)
         for i in range(len(t)):
             if mon.update(float(t[i]), float(x[i]), float(y[i]), float(clear[i]), "reported" if flags[i] else None):
                 used = i + 1
                 break
         self._prev = (float(x[used - 1]), float(y[used - 1]))
-        if mon.decided:
+        if mon.kind is not None:
             self._decide(mon.kind, mon.detail, mon.failure_point)
         self._t.append(t[:used])
         self._xy.append(np.column_stack([x[:used], y[:used]]))
@@ -182,18 +184,20 @@ class RobotJudge(_Judge):
         xy = np.concatenate(self._xy) if self._xy else np.zeros((0, 2))
         t_rel = t - t[0] if len(t) else t
         mon = self.monitors
-        metrics = mon.metrics() if mon is not None else {"time": 0.0, "path_length": 0.0, "min_clearance": None}
+        metrics: dict[str, Any] = (mon.metrics() if mon is not None
+                                   else {"time": 0.0, "path_length": 0.0, "min_clearance": None})
         metrics.update({
             "outcome": {"none": "success"}.get(self.kind or "error", self.kind or "error"),
             "radius": self.cfg.radius,
-            "distance_to_goal": float(math.hypot(xy[-1, 0] - self.goal[0], xy[-1, 1] - self.goal[1])) if len(xy) else None,
+            "distance_to_goal": (float(math.hypot(xy[-1, 0] - self.goal[0], xy[-1, 1] - self.goal[1]))
+                                 if len(xy) else None),
             "samples": self.samples,
         })
         if mon is not None and self.kind == "stall" and mon.outcome == "no_route":
             metrics["outcome"] = "no_route"
         success = self.kind == "none"
         return self._outcome(
-            {"robot_time": metrics["time"] if success else self.time_limit}, metrics,
+            {"robot_time": float(metrics["time"]) if success else self.time_limit}, metrics,
             xy if len(xy) else None, {"t": t_rel, "x": xy[:, 0], "y": xy[:, 1]},
         )
 

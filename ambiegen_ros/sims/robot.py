@@ -29,8 +29,9 @@ of the surrogate's path-length fitness:
 Oracle (``RobotMonitors``, the paper's monitors), checked on every pose in this order:
 
 * *stall*: the body touches a wall (Stage's stall: blocked, it cannot move), or the robot's
-  stall flag is up (the ND driver gave up; no route). ``metrics["stall_cause"]`` says which:
-  contact | emergency_stop | no_region | no_progress | no_motion | no_route;
+  stall flag is up (the ND driver gave up), or the loitering rule below fires on a robot that did
+  not move at all (no route: it never starts). ``metrics["stall_cause"]`` says which: contact |
+  emergency_stop | no_region | no_progress | no_motion | stationary | no_route;
 * *success*: within ``goal_tolerance`` of the goal (the route's last waypoint);
 * *loiter*: once the run covers ``stall_time`` (the loitering window, 10 s), the robot lies
   within ``stall_radius`` (0.5 m) of the mean position of the window's poses;
@@ -60,7 +61,8 @@ from .outcome import Outcome
 
 PLANNERS = ("nd", "gap")
 ENGINES = ("auto", "numba", "numpy")
-STALL_CAUSES = ("contact", "emergency_stop", "no_region", "no_progress", "no_motion", "no_route", "reported")
+STALL_CAUSES = ("contact", "emergency_stop", "no_region", "no_progress", "no_motion", "stationary", "no_route",
+                "reported")
 
 
 @dataclass(frozen=True)
@@ -145,7 +147,8 @@ class RobotSimConfig:
         if self.engine not in ENGINES:
             raise ScenarioError("option.engine", f"unknown engine {self.engine!r}", "|".join(ENGINES))
         if self.route_diagonal is not None and self.route_diagonal not in DIAGONAL_RULES:
-            raise ScenarioError("option.route_diagonal", f"unknown rule {self.route_diagonal!r}", "|".join(DIAGONAL_RULES))
+            raise ScenarioError("option.route_diagonal", f"unknown rule {self.route_diagonal!r}",
+                                "|".join(DIAGONAL_RULES))
         if self.laser_buffer < 1:
             raise ScenarioError("option.laser_buffer", "must be >= 1")
         if self.nd_sectors < 8 or self.nd_sectors % 4:
@@ -530,7 +533,7 @@ class WallGeometry:
         j = int(math.floor((y - oy) / res))
         k = self.window
         i0, j0 = max(i - k, 0), max(j - k, 0)
-        jy, ix = np.nonzero(self.corner[j0:j + k + 2, i0:i + k + 2])
+        jy, ix = np.nonzero(np.asarray(self.corner)[j0:j + k + 2, i0:i + k + 2])
         if len(ix):
             dx = (ix + i0) * res + ox - x
             dy = (jy + j0) * res + oy - y
@@ -551,11 +554,16 @@ class RobotMonitors:
     """Stall, route completion, loitering and time limit on a stream of poses (see the module
     docstring), plus the recorded unsafe-proximity and waypoint-arrival events. ``update`` takes
     one pose with its body clearance and the robot's stall flag (the cause, or None); it returns
-    True once decided (``kind``, ``outcome``, ``detail``, ``failure_point``, ``stall_cause``)."""
+    True once decided (``kind``, ``outcome``, ``detail``, ``failure_point``, ``stall_cause``).
+
+    When the loitering rule fires on a robot that did not move at all during the window, it is a
+    stall ("stationary"; "no_route" when ``no_route``): what an observer without the stall flag
+    sees of a robot that gave up or never started."""
 
     def __init__(self, config: RobotSimConfig, goal_xy: tuple[float, float], time_limit: float,
-                 waypoints: np.ndarray | None = None):
+                 waypoints: np.ndarray | None = None, no_route: bool = False):
         self.cfg = config
+        self.no_route = no_route
         self.goal = (float(goal_xy[0]), float(goal_xy[1]))
         self.time_limit = float(time_limit)
         self.waypoints = np.zeros((0, 2)) if waypoints is None else np.asarray(waypoints, dtype=float)
@@ -576,6 +584,7 @@ class RobotMonitors:
         self._prev: tuple[float, float, float] | None = None
         self._window: deque = deque()  # (t, x, y) of the loitering window
         self._sum = [0.0, 0.0]
+        self._window_path = 0.0  # distance driven between the window's poses
 
     @property
     def decided(self) -> bool:
@@ -590,7 +599,7 @@ class RobotMonitors:
             return True
         cfg = self.cfg
         first = self._prev is None
-        if first:
+        if self._prev is None:
             self.t0 = t
         else:
             px, py, pt = self._prev
@@ -598,7 +607,7 @@ class RobotMonitors:
             if self._near:
                 self.proximity_time += t - pt
         self._prev = (x, y, t)
-        self.t = t - self.t0
+        self.t = t - (self.t0 if self.t0 is not None else t)
         self.min_clearance = min(self.min_clearance, clearance)
         near = clearance < cfg.proximity
         self.proximity_events += int(near and not self._near)
@@ -608,6 +617,8 @@ class RobotMonitors:
             self.waypoints_reached += 1
             self.arrivals.append(self.t)
         # loitering window: the poses of the last stall_time seconds, this one included
+        if self._window:
+            self._window_path += math.hypot(x - self._window[-1][1], y - self._window[-1][2])
         self._window.append((t, x, y))
         self._sum[0] += x
         self._sum[1] += y
@@ -615,6 +626,7 @@ class RobotMonitors:
             _, ox, oy = self._window.popleft()
             self._sum[0] -= ox
             self._sum[1] -= oy
+            self._window_path -= math.hypot(self._window[0][1] - ox, self._window[0][2] - oy)
 
         if clearance <= 0.0:
             self.stall_cause = "contact"
@@ -631,7 +643,12 @@ class RobotMonitors:
         elif self.t >= cfg.stall_time - 1e-9:
             n = len(self._window)
             cx, cy = self._sum[0] / n, self._sum[1] / n
-            if math.hypot(x - cx, y - cy) < cfg.stall_radius:
+            if math.hypot(x - cx, y - cy) < cfg.stall_radius and self._window_path < 1e-6:
+                self.stall_cause = "no_route" if self.no_route else "stationary"
+                self._decide("stall", "no_route" if self.no_route else "stall",
+                             f"stalled at ({x:.2f}, {y:.2f}): no motion for {cfg.stall_time:g} s (after {self.t:.1f} s)"
+                             + ("; no route" if self.no_route else ""), x, y)
+            elif math.hypot(x - cx, y - cy) < cfg.stall_radius:
                 self._decide("loiter", "loiter", f"loitering within {cfg.stall_radius:g} m of ({cx:.2f}, {cy:.2f}) "
                              f"for {cfg.stall_time:g} s (after {self.t:.1f} s)", x, y)
         if not self.decided and self.t >= self.time_limit - 1e-9:
@@ -677,7 +694,8 @@ class GapPlanner:
         self.dir_angles = np.linspace(-self.half_fov, self.half_fov, cfg.directions)
         self.cos_d, self.sin_d = np.cos(self.dir_angles)[:, None], np.sin(self.dir_angles)[:, None]
         self.modes = ((cfg.radius + cfg.margin, cfg.lookahead, cfg.cruise_speed),
-                      (cfg.radius + cfg.squeeze_margin, cfg.squeeze_lookahead, min(cfg.squeeze_speed, cfg.cruise_speed)))
+                      (cfg.radius + cfg.squeeze_margin, cfg.squeeze_lookahead,
+                       min(cfg.squeeze_speed, cfg.cruise_speed)))
         self.turn_in_place = math.radians(cfg.turn_in_place_deg)
         self.ahead = int(np.argmin(np.abs(self.dir_angles)))
 
@@ -751,10 +769,11 @@ def navigate(grid: np.ndarray, resolution: float, start: tuple[int, int], goal: 
 
 def drive(grid: np.ndarray, resolution: float, start_xy: tuple[float, float], goal_xy: tuple[float, float],
           waypoints: np.ndarray, config: RobotSimConfig | None = None, seed: int = 0,
-          time_limit: float | None = None, yaw: float | None = None) -> dict[str, Any]:
-    """Drive the robot from ``start_xy`` (facing ``yaw``; default ``waypoints[1]``, else the goal) through
-    ``waypoints`` ((K, 2) metres, ``waypoints[0]`` = the start; none = no route) to ``goal_xy``,
-    judged by the monitors; ``time_limit`` defaults to the config's for the waypoints' polyline.
+          time_limit: float | None = None, heading: float | None = None) -> dict[str, Any]:
+    """Drive the robot from ``start_xy`` (facing ``heading``; default ``waypoints[1]``, else the
+    goal) through ``waypoints`` ((K, 2) metres, ``waypoints[0]`` = the start; none = no route) to
+    ``goal_xy``, judged by the monitors; ``time_limit`` defaults to the config's for the waypoints'
+    polyline.
 
     Keys: outcome, failure_kind, detail, time, time_limit, path_length, min_clearance, route_length,
     waypoints, waypoints_reached, stall_cause, unsafe_proximity_events, unsafe_proximity_s,
@@ -770,37 +789,42 @@ def drive(grid: np.ndarray, resolution: float, start_xy: tuple[float, float], go
     padded = walls.padded
     sx, sy = float(start_xy[0]), float(start_xy[1])
     gx, gy = float(goal_xy[0]), float(goal_xy[1])
-    if yaw is None and len(waypoints) > 1:
-        yaw = math.atan2(waypoints[1, 1] - sy, waypoints[1, 0] - sx)
-    elif yaw is None:
-        yaw = math.atan2(gy - sy, gx - sx)
+    if heading is None:
+        ahead = waypoints[1] if len(waypoints) > 1 else (gx, gy)
+        heading = math.atan2(ahead[1] - sy, ahead[0] - sx)
+    yaw = float(heading)
     half_fov = math.radians(cfg.fov_deg) / 2
     beam_angles = np.linspace(-half_fov, half_fov, cfg.beams)
     driver = nd_driver(cfg) if cfg.planner == "nd" else None
     gap = GapPlanner(cfg, beam_angles) if cfg.planner == "gap" else None
-    monitors = RobotMonitors(cfg, (gx, gy), time_limit, waypoints[1:])
+    monitors = RobotMonitors(cfg, (gx, gy), time_limit, waypoints[1:], no_route=not len(waypoints))
 
     clearance_at = walls.clearance_at
 
     x, y, v, w = sx, sy, 0.0, 0.0
     n_max = int(math.ceil(time_limit / cfg.dt - 1e-9))
     rec = np.zeros((n_max + 1, 6))  # t, x, y, yaw, v, stall
-    rec[0] = (0.0, x, y, yaw, 0.0, 0.0 if len(waypoints) else 1.0)
+    rec[0] = (0.0, x, y, yaw, 0.0, 0.0)
     wp = min(1, len(waypoints) - 1)
     if driver is not None and len(waypoints):
         driver.set_goal(waypoints[wp], 0.0, (x, y, yaw))
     k = 0
-    monitors.update(0.0, x, y, clearance_at(x, y, yaw), None if len(waypoints) else "no_route")
+    monitors.update(0.0, x, y, clearance_at(x, y, yaw))
     while not monitors.decided and k < n_max:
         k += 1
         t = k * cfg.dt
         # --- sense and decide ---
         v_cmd = w_cmd = 0.0
         stall_cause = None
-        while wp < len(waypoints) - 1 and math.hypot(waypoints[wp, 0] - x, waypoints[wp, 1] - y) < cfg.waypoint_tolerance:
+        while (wp < len(waypoints) - 1
+               and math.hypot(waypoints[wp, 0] - x, waypoints[wp, 1] - y) < cfg.waypoint_tolerance):
             wp += 1
             if driver is not None:
                 driver.set_goal(waypoints[wp], t, (x, y, yaw))
+        if not len(waypoints):  # no route: nothing to drive to; the robot stands where it is
+            rec[k] = (t, x, y, yaw, 0.0, 0.0)
+            monitors.update(t, x, y, clearance_at(x, y, yaw))
+            continue
         ranges = cast_rays(grid, resolution, x, y, beam_angles + yaw, cfg.laser_range, padded, cfg.engine)
         hits = ranges < cfg.laser_range
         if cfg.laser_noise > 0:  # noise on the returns; a beam that hit nothing reads the maximum range
@@ -811,7 +835,7 @@ def drive(grid: np.ndarray, resolution: float, start_xy: tuple[float, float], go
                                              y + ranges[hits] * np.sin(beam_angles[hits] + yaw)]))
             v_cmd, w_cmd = driver.command(t, (x, y, yaw), v, w)
             stall_cause = driver.gave_up
-        else:
+        elif gap is not None:
             tx, ty = waypoints[wp]
             bearing = (math.atan2(ty - y, tx - x) - yaw + math.pi) % (2 * math.pi) - math.pi
             v_cmd, w_cmd = gap.command(bearing, math.hypot(tx - x, ty - y), wp == len(waypoints) - 1, ranges)
@@ -863,7 +887,8 @@ def simulate(problem: Any, scenario: Any, config: RobotSimConfig | None = None, 
     cfg = config or RobotSimConfig()
     env = problem.environment(scenario)
     pc = problem.config
-    run = navigate(env.grid, env.resolution, pc.start, pc.goal, cfg, seed=seed, diagonal=cfg.route_diagonal or pc.diagonal)
+    run = navigate(env.grid, env.resolution, pc.start, pc.goal, cfg, seed=seed,
+                   diagonal=cfg.route_diagonal or pc.diagonal)
     timeline = run["timeline"]
     metrics = {
         "outcome": run["outcome"],

@@ -30,7 +30,8 @@ def test_player_parameters_and_robot_shape(nd):
     assert (p.front, p.back, p.left) == pytest.approx((0.18, 0.26, 0.19))
     assert (p.dsmax, p.dsmin, p.enlarge, p.discontinuity) == pytest.approx((0.4, 0.1, 0.02, 0.38))
     ahead, left, behind = nd.sector_of(0.0), nd.sector_of(math.pi / 2), nd.sector_of(math.pi)
-    assert nd.E[ahead] == pytest.approx(0.18) and nd.E[left] == pytest.approx(0.19) and nd.E[behind] == pytest.approx(0.26)
+    assert nd.E[ahead] == pytest.approx(0.18) and nd.E[left] == pytest.approx(0.19)
+    assert nd.E[behind] == pytest.approx(0.26)
     # security zone: dsmin behind, the frontal arc (|corner| + dsmax) ahead, in between at the sides
     assert nd.ds[behind] == pytest.approx(0.1, abs=1e-6)
     assert nd.ds[ahead] == pytest.approx(math.hypot(0.18, 0.19) + 0.4 - 0.18, abs=1e-3)
