@@ -54,6 +54,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.accel import jit
 from ..core.attributes import ScenarioError
 from ..problems.robot import DIAGONAL_RULES, astar, inflate
 from .nearness_diagram import NDDriver, NDParams, NearnessDiagram
@@ -390,16 +391,11 @@ _KERNELS: Any = None  # dict of compiled loops, or False when numba is unavailab
 
 
 def _kernels():
-    """Compile the loops on first use (cached on disk by numba); False without numba."""
+    """Compile the loops on first use (``core.accel.jit``: cached on disk); False without numba."""
     global _KERNELS
     if _KERNELS is None:
-        try:
-            import numba
-        except ImportError:
-            _KERNELS = False
-        else:
-            exact = numba.njit(cache=True, error_model="numpy")  # IEEE results, no Python exceptions
-            _KERNELS = {"rays": exact(_rays_kernel), "clearance": exact(_clearance_kernel)}
+        rays, clearance = jit(_rays_kernel), jit(_clearance_kernel)
+        _KERNELS = {"rays": rays, "clearance": clearance} if rays is not None and clearance is not None else False
     return _KERNELS
 
 
