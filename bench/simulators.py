@@ -8,13 +8,16 @@ one core) and prints a table; writes bench/results/simulators.json. Targets (iss
 ``--robot-failures`` instead measures how often the robot's full model (Nearness Diagram driver,
 the paper's monitors, the fair time limit) fails on N random valid maps and on the N highest-F1
 maps of a GA search (``--evaluations``, as ``ambiegen search --problem robot --algorithm ga``),
-with the failure kinds, the ratio top / random, the real-time factor and the rank correlation of
-surrogate F1 with the outcome; writes bench/results/robot_failures.json. ``--planner gap`` runs the
-earlier local planner instead.
+with the failure kinds, the ratio top / random, the real-time factor, the rank correlation of
+surrogate F1 with the outcome, and how many failures sit at a corner cut of the route (a diagonal
+step between two wall cells that touch at a corner); writes bench/results/robot_failures.json.
+``--planner gap`` runs the earlier local planner, ``--route-diagonal both_free`` plans the robot's
+route without such steps.
 """
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from collections import Counter
@@ -98,13 +101,33 @@ def _spearman(a, b) -> float | None:
     return round(float(spearmanr(a, b).statistic), 3)
 
 
+def corner_cuts(problem, scenario, radius: float) -> list[tuple[float, float]]:
+    """Where the problem's A* route steps diagonally between two wall cells that touch at a corner
+    (a zero-width gap; the replication profile's rule ``always`` allows it): the corner points."""
+    from ambiegen_ros.problems.robot import astar, inflate
+
+    grid = problem.environment(scenario).grid
+    _, cells = astar(inflate(grid, radius, 1.0), problem.config.start, problem.config.goal, problem.config.diagonal)
+    cuts = []
+    for (x0, y0), (x1, y1) in zip(cells[:-1], cells[1:]):
+        dx, dy = x1 - x0, y1 - y0
+        if dx and dy and grid[y0, x0 + dx] and grid[y0 + dy, x0]:
+            cuts.append((x0 + 0.5 + dx / 2, y0 + 0.5 + dy / 2))
+    return cuts
+
+
 def execute_group(executor, scenarios, f1) -> dict:
-    """Run each scenario on the full model; failure rate, kinds and speed of the group."""
+    """Run each scenario on the full model; failure rate, kinds and speed of the group, and how
+    many failures lie within 2 m of a corner cut of the problem's route."""
     rows, simulated, wall = [], 0.0, 0.0
+    problem = executor.problem
     for i, (scenario, score) in enumerate(zip(scenarios, f1)):
         start = time.perf_counter()
         out = executor.execute(scenario, seed=i)
         wall += time.perf_counter() - start
+        cuts = corner_cuts(problem, scenario, executor.config.radius)
+        at_cut = bool(out.failed and out.failure_point is not None and cuts and min(
+            math.hypot(out.failure_point[0] - cx, out.failure_point[1] - cy) for cx, cy in cuts) < 2.0)
         m = out.metrics
         simulated += float(m["time"])
         kind = out.failure_kind if out.failure_kind == "none" else f"{out.failure_kind}:{m.get('stall_cause') or '-'}"
@@ -112,13 +135,18 @@ def execute_group(executor, scenarios, f1) -> dict:
                      "time": round(m["time"], 1), "time_limit": round(m["time_limit"], 1),
                      "route_length": m["route_length"],
                      "waypoints": f"{m['waypoints_reached']}/{max(m['waypoints'] - 1, 0)}",
-                     "min_clearance": m["min_clearance"], "failure_point": out.failure_point})
+                     "min_clearance": m["min_clearance"], "failure_point": out.failure_point,
+                     "corner_cuts": len(cuts), "failed_at_corner_cut": at_cut})
     failed = [r["failed"] for r in rows]
     return {
         "n": len(rows),
         "failures": int(sum(failed)),
         "failure_rate": round(sum(failed) / max(len(rows), 1), 3),
         "kinds": dict(Counter(r["kind"] for r in rows)),
+        "maps_with_corner_cut": sum(r["corner_cuts"] > 0 for r in rows),
+        "failures_at_corner_cut": sum(r["failed_at_corner_cut"] for r in rows),
+        "distinct_failure_places": len({(round(r["failure_point"][0]), round(r["failure_point"][1]))
+                                        for r in rows if r["failed"] and r["failure_point"]}),
         "mean_f1": round(float(np.mean(f1)), 2),
         "mean_route_length": round(float(np.mean([r["route_length"] or 0 for r in rows])), 1),
         "simulated_s": round(simulated, 1),
@@ -158,10 +186,15 @@ def print_failures(r: dict) -> None:
     print(f"robot full model ({r['planner']}, route diagonal rule {r['route_diagonal']}, profile {r['profile']}), "
           f"GA search of {r['search']['evaluations']} "
           f"evaluations, seed {r['search']['seed']}")
-    print(f"{'maps':<8} {'n':>3} {'mean F1':>8} {'failed':>7} {'rate':>6}  kinds")
+    print(f"{'maps':<8} {'n':>3} {'mean F1':>8} {'failed':>7} {'rate':>6} {'cut':>4} {'at cut':>6} {'places':>6}"
+          "  kinds")
     for name in ("random", "top"):
         g = r[name]
-        print(f"{name:<8} {g['n']:>3} {g['mean_f1']:>8.1f} {g['failures']:>7} {g['failure_rate']:>6.0%}  {g['kinds']}")
+        print(f"{name:<8} {g['n']:>3} {g['mean_f1']:>8.1f} {g['failures']:>7} {g['failure_rate']:>6.0%} "
+              f"{g['maps_with_corner_cut']:>4} {g['failures_at_corner_cut']:>6} {g['distinct_failure_places']:>6}  "
+              f"{g['kinds']}")
+    print("cut: maps whose problem route steps between two corner-touching wall cells; at cut: failures within "
+          "2 m of one; places: distinct failure places (1 m)")
     print(f"ratio top / random: {r['ratio_top_vs_random']}; Spearman(F1, failed): {r['spearman_f1_failed']}; "
           f"{r['realtime_factor']:.0f}x real time")
 

@@ -44,6 +44,10 @@ Unsafe proximity (body within ``proximity`` = 0.2 m of a wall) and waypoint arri
 (``unsafe_proximity_events``/``_s``, ``waypoints_reached``), not failures: the paper's verdict
 counted stalls and loitering only (its proximity monitor watched pairs of robots).
 Metrics: outcome, time, time limit, path length, minimum clearance (body to wall), route length.
+
+Speed: the laser and the body clearance run as compiled loops (``engine``; the numpy code gives
+the same numbers); a run of a 50 m map takes 1.5-2.5 s, about 150x real time (ND itself, numpy,
+is most of a step).
 """
 from __future__ import annotations
 
