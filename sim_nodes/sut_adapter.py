@@ -255,8 +255,9 @@ class SutAdapter:
                 info = msg.map.info
                 origin = (float(info.origin.position.x), float(info.origin.position.y))
                 goal = msg.goal.pose.position
-                job.judge = RobotJudge(grid, float(info.resolution), (float(goal.x), float(goal.y)), self.oracle, origin)
-                job.limit_sim = self.oracle.timeout
+                job.judge = RobotJudge(grid, float(info.resolution), (float(goal.x), float(goal.y)), self.oracle, origin,
+                                       diagonal=self.problem.config.diagonal)
+                job.limit_sim = self.oracle.timeout  # the floor; the route's own limit once the start is seen
                 s = msg.start.pose
                 job.start_pose = (float(s.position.x), float(s.position.y), yaw_of(s.orientation))
                 self.pub_map.publish(make("nav_msgs/msg/OccupancyGrid", header=head, info=info, data=msg.map.data))
@@ -418,7 +419,9 @@ class SutAdapter:
         if self.odom_frame == "start":
             x, y, yaw = to_map_frame(x, y, yaw, job.start_pose)
         if self.problem_name == "robot":
-            job.judge.add(t, x, y)
+            job.judge.add(t, x, y, yaw)
+            if math.isfinite(job.judge.time_limit):
+                job.limit_sim = max(job.limit_sim, job.judge.time_limit)
         else:
             job.judge.add(t, x, y, yaw, v)
 
