@@ -11,9 +11,9 @@ from __future__ import annotations
 import heapq
 import json
 import math
-from pathlib import Path
 
 import numpy as np
+from replication_reference import load
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -28,7 +28,6 @@ from ambiegen_ros.problems.robot import (
     inflation_footprint,
 )
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "replication" / "robot.jsonl"
 START, GOAL = (1, 1), (48, 48)
 
 
@@ -39,7 +38,7 @@ def problem():
 
 @pytest.fixture(scope="module")
 def reference():
-    return [json.loads(line) for line in DATA.read_text().splitlines() if line.strip()]
+    return load("robot")
 
 
 def replication_walls(elements, map_size=50):

@@ -7,11 +7,10 @@ reference); the other tests check the parts against scipy, shapely and numpy the
 """
 from __future__ import annotations
 
-import json
 import math
-from pathlib import Path
 
 import numpy as np
+from replication_reference import load
 import pytest
 import shapely
 from scipy.interpolate import splev, splprep
@@ -33,14 +32,12 @@ from ambiegen_ros.problems.vehicle import (
     simulate_replication,
 )
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "replication" / "vehicle.jsonl"
 HAS_NUMBA = bool(_kernels())
 ENGINES = ["numba", "numpy"] if HAS_NUMBA else ["numpy"]
 
 
 def load_reference() -> list[dict]:
-    with open(DATA) as fh:
-        return [json.loads(line) for line in fh if line.strip()]
+    return load("vehicle")
 
 
 def road(*segments) -> Scenario:
