@@ -4,11 +4,15 @@
 `pip install .` installs the same code, its console scripts and the .msg files it needs to speak
 ROS 2 over Cyclone DDS without rclpy.
 """
+import runpy
 from glob import glob
+from pathlib import Path
 
 from setuptools import find_packages, setup
 
 PACKAGE = "ambiegen_ros"
+# the one table of dependencies and minimum versions (stdlib only, so readable before any install)
+DEPS = runpy.run_path(str(Path(__file__).resolve().parent / PACKAGE / "deps.py"))
 
 setup(
     name=PACKAGE,
@@ -24,18 +28,7 @@ setup(
         ("share/" + PACKAGE + "/ambiegen_msgs/msg", glob("ambiegen_msgs/msg/*.msg")),
     ],
     python_requires=">=3.10",
-    install_requires=[
-        "pymoo==0.6.1.6",  # operator signatures changed inside 0.6.1.x
-        "numpy>=1.24",
-        "scipy>=1.10",
-        "shapely>=2.0",
-        "matplotlib>=3.6",
-        "PyYAML>=6.0",
-        "mcap==1.6.0",
-        "rosbags==0.11.9",  # CDR codec, Jazzy type store, RIHS01 hashes
-        "cyclonedds==11.0.1",
-        "numba==0.68.1",  # the vehicle surrogate's car loop (numpy fallback kept); brings llvmlite  # one exact version for all our processes (wire-level type matching)
-    ],
+    install_requires=DEPS["install_requires"](),  # ambiegen_ros/deps.py: pins and minimums, and why
     extras_require={"test": ["pytest>=8", "hypothesis>=6.100", "mcap-ros2-support==0.6.0", "mypy>=1.10"]},
     zip_safe=True,
     maintainer="AmbieGen-ROS team",

@@ -289,7 +289,13 @@ def _experiment_command(sub) -> None:
     register_cli(sub)
 
 
-EXTRA_COMMANDS: list[Callable[[Any], None]] = [_execute_command, _ros_commands, _experiment_command]
+def _doctor_command(sub) -> None:
+    from .doctor import register_cli
+
+    register_cli(sub)
+
+
+EXTRA_COMMANDS: list[Callable[[Any], None]] = [_execute_command, _ros_commands, _experiment_command, _doctor_command]
 """Subcommand registrars of other modules (ROS campaign, recover, replay)."""
 
 
@@ -298,6 +304,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
+        return EXIT_BAD_INPUT
+    from .deps import broken_environment
+
+    if args.command != "doctor" and broken_environment(f"ambiegen {args.command}"):  # fail before any work
         return EXIT_BAD_INPUT
     try:
         return int(args.func(args) or 0)

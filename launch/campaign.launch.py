@@ -1,69 +1,65 @@
 """ros2 launch ambiegen_ros campaign.launch.py problem:=robot algorithm:=nsga2 workers:=2
 
 Starts a recorder, `workers` sim nodes of the problem and the generator (the same node set as
-`ambiegen campaign` on machines without ROS). Arguments: problem, algorithm, evaluations
-(0 = the paper's budget), time_budget (s, 0 = none), seed (-1 = drawn), mode
-(surrogate | in_the_loop), workers, output_dir, config_file ('' = config/<problem>.yaml), profile
-(fidelity profile of the generator and every sim node: replication | refined; '' = the config
-file's, else replication).
+`ambiegen campaign` on machines without ROS). The launch ends with the campaign: when the
+generator exits, every node gets SIGINT (the recorder closes the MCAP) and the campaign summary
+is printed (`keep_workers:=true` stops only the recorder and leaves the sim nodes running for
+external stacks until Ctrl-C). The log is `<output_dir>/<run id>_<UTC time>.mcap`; an existing
+`output` file is never overwritten unless `overwrite:=true`.
+
+Arguments: problem, algorithm, evaluations (0 = the paper's budget), time_budget (s, 0 = none),
+seed (-1 = drawn), mode (surrogate | in_the_loop), workers, output_dir, output, overwrite,
+keep_workers, config_file ('' = config/<problem>.yaml), profile (fidelity profile of the generator
+and every sim node: replication | refined; '' = the config file's, else replication). The node
+set, names and end-of-run rules live in ambiegen_ros/launch_logic.py (tested without ROS).
 """
-import os
+import signal
+import time
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, OpaqueFunction
+from launch.actions import DeclareLaunchArgument, EmitEvent, LogInfo, OpaqueFunction, RegisterEventHandler
+from launch.event_handlers import OnProcessExit
+from launch.events import Shutdown, matches_action
+from launch.events.process import SignalProcess
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
-SIM_EXECUTABLES = {"robot": "robot_sim", "vehicle": "car_sim", "thermostat": "thermostat_sim"}
-
-ARGUMENTS = {
-    "problem": ("robot", "thermostat | robot | vehicle"),
-    "algorithm": ("nsga2", "ga | nsga2 | random"),
-    "evaluations": ("0", "evaluation budget (0 = the paper's)"),
-    "time_budget": ("0.0", "wall-clock budget in seconds (0 = none)"),
-    "seed": ("-1", "random seed (-1 = drawn and recorded)"),
-    "mode": ("surrogate", "surrogate | in_the_loop"),
-    "workers": ("1", "number of sim nodes sharing the scenarios"),
-    "output_dir": (".", "where the recorder writes <run>.mcap"),
-    "config_file": ("", "run config YAML ('' = the package's config/<problem>.yaml)"),
-    "profile": ("", "fidelity profile of every node: replication | refined ('' = the config file's, else replication)"),
-}
+from ambiegen_ros.launch_logic import LAUNCH_ARGUMENTS, plan_campaign, plan_summary, summary_table
 
 
-def _nodes(context):
-    value = {name: LaunchConfiguration(name).perform(context) for name in ARGUMENTS}
-    problem = value["problem"]
-    config = value["config_file"] or os.path.join(get_package_share_directory("ambiegen_ros"), "config", f"{problem}.yaml")
-    workers = int(value["workers"])
-    output = os.path.join(value["output_dir"], f"ambiegen_{problem}_{value['algorithm']}.mcap")
-    nodes = [
-        Node(package="ambiegen_ros", executable="recorder", name="recorder", output="screen",
-             parameters=[{"output": output}]),
+def _campaign(context):
+    values = {name: LaunchConfiguration(name).perform(context) for name in LAUNCH_ARGUMENTS}
+    plan = plan_campaign(values, get_package_share_directory("ambiegen_ros"))
+    started = time.monotonic()
+    exit_codes = {}
+    nodes = {spec.name: Node(package="ambiegen_ros", executable=spec.executable, name=spec.name, output="screen",
+                             parameters=[spec.parameters]) for spec in plan.nodes}
+    recorder, generator = nodes["recorder"], nodes["generator"]
+
+    def on_generator_exit(event, _context):
+        exit_codes["generator"] = event.returncode
+        if plan.after_generator_exit() == "shutdown":
+            return [EmitEvent(event=Shutdown(reason=f"campaign {plan.run_id} done (generator exit {event.returncode})"))]
+        return [LogInfo(msg=f"campaign {plan.run_id} done; stopping the recorder, keeping the sim nodes (keep_workers)"),
+                EmitEvent(event=SignalProcess(signal_number=signal.SIGINT, process_matcher=matches_action(recorder)))]
+
+    def on_recorder_exit(event, _context):
+        exit_codes["recorder"] = event.returncode
+        print(summary_table(plan_summary(plan, time.monotonic() - started, dict(exit_codes))), flush=True)
+        if plan.after_recorder_exit(generator_done="generator" in exit_codes):
+            return [EmitEvent(event=Shutdown(reason=f"recorder exited ({event.returncode})"))]
+        return []
+
+    return [
+        LogInfo(msg=f"campaign {plan.run_id}: recording to {plan.mcap}"),
+        RegisterEventHandler(OnProcessExit(target_action=generator, on_exit=on_generator_exit)),
+        RegisterEventHandler(OnProcessExit(target_action=recorder, on_exit=on_recorder_exit)),
+        *nodes.values(),
     ]
-    for k in range(workers):
-        name = f"{problem}_sim_{k}"
-        nodes.append(Node(package="ambiegen_ros", executable=SIM_EXECUTABLES[problem], name=name, output="screen",
-                          parameters=[{"worker_id": name, "config_file": config, "profile": value["profile"],
-                                       "min_result_subscribers": 2}]))
-    nodes.append(Node(
-        package="ambiegen_ros", executable="generator", name="generator", output="screen",
-        parameters=[{
-            "problem": problem,
-            "algorithm": value["algorithm"],
-            "evaluations": int(value["evaluations"]),
-            "time_budget": float(value["time_budget"]),
-            "seed": int(value["seed"]),
-            "mode": value["mode"],
-            "config_file": config,
-            "profile": value["profile"],
-            "min_subscribers": workers + 1,
-        }],
-    ))
-    return nodes
 
 
 def generate_launch_description():
     args = [DeclareLaunchArgument(name, default_value=default, description=text)
-            for name, (default, text) in ARGUMENTS.items()]
-    return LaunchDescription(args + [OpaqueFunction(function=_nodes)])
+            for name, (default, text) in LAUNCH_ARGUMENTS.items()]
+    return LaunchDescription(args + [OpaqueFunction(function=_campaign)])

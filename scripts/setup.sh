@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Sets up a fresh Debian/Ubuntu machine for AmbieGen-ROS without ROS:
-#   - Debian packages for the offline .msg check (python3-rosidl; skipped when not root / no apt),
+#   - Debian packages for the offline .msg check (python3-rosidl) and iproute2 for the multi-host network-namespace tests (skipped when not root / no apt),
 #   - a virtual environment in .venv with the package (editable) and its test tools.
 # Idempotent: running it again only installs what is missing.
 set -euo pipefail
@@ -10,7 +10,7 @@ SUDO=""
 if [ "$(id -u)" != "0" ] && command -v sudo >/dev/null 2>&1; then SUDO="sudo"; fi
 if command -v apt-get >/dev/null 2>&1 && { [ "$(id -u)" = "0" ] || [ -n "$SUDO" ]; }; then
   need=()
-  for pkg in python3-rosidl python3-catkin-pkg python3-empy; do
+  for pkg in python3-rosidl python3-catkin-pkg python3-empy iproute2; do
     dpkg -s "$pkg" >/dev/null 2>&1 || need+=("$pkg")
   done
   python3 -m venv --help >/dev/null 2>&1 || need+=(python3-venv)

@@ -150,13 +150,13 @@ class ExternalSim:
 
     def on_initialpose(self, msg: Any) -> None:
         pos = msg.pose.pose.position
-        self.start = (float(pos.x), float(pos.y))
+        self.start = tuple(conversions.require_finite((pos.x, pos.y), "pose.pose.position").tolist())
         self.node.logger.debug(f"initial pose {self.start}")
         self._abort()
 
     def on_goal(self, msg: Any) -> None:
         pos = msg.pose.position
-        self.goal = (float(pos.x), float(pos.y))
+        self.goal = tuple(conversions.require_finite((pos.x, pos.y), "pose.position").tolist())
         self.node.logger.debug(f"goal {self.goal}")
         self._abort()
 
@@ -177,7 +177,7 @@ class ExternalSim:
     # --- car --------------------------------------------------------------------------------
     def on_road(self, msg: Any) -> None:
         self._abort()
-        pts = conversions.path_points(msg)
+        pts = conversions.require_finite(conversions.path_points(msg), "poses")
         if len(pts) < 2:
             self.node.logger.warning("road with fewer than 2 points; not driving")
             return
@@ -188,7 +188,7 @@ class ExternalSim:
 
     # --- thermostat ---------------------------------------------------------------------------
     def on_setpoint(self, msg: Any) -> None:
-        self.setpoint = float(msg.data)
+        self.setpoint = float(conversions.require_finite(msg.data, "data"))
         self.node.logger.debug(f"set point {self.setpoint:g} degC")
         if self.room is None:  # no reset message so far: the first set point starts the room
             start = self.initial_temperature if math.isfinite(self.initial_temperature) else self.setpoint
@@ -197,7 +197,7 @@ class ExternalSim:
             self._reset_room(self.room.T)
 
     def on_reset(self, msg: Any) -> None:
-        self._reset_room(float(msg.data))
+        self._reset_room(float(conversions.require_finite(msg.data, "data")))
 
     def on_room_model(self, msg: Any) -> None:
         model = int(msg.data)

@@ -48,12 +48,11 @@ import numpy as np
 from ambiegen_ros.core.config import ConfigError
 from ambiegen_ros.ros import conversions
 from ambiegen_ros.ros.qos import DEFAULT, LATCHED, STREAM, Qos
-from ambiegen_ros.ros.transport import create_node
 from ambiegen_ros.sims import Outcome
 from ambiegen_ros.sims.full_model import FullModelExecutor, sim_config
 from ambiegen_ros.sims.oracles import CarJudge, RobotJudge, ThermostatJudge
 from ambiegen_ros.nodes import run_node
-from sim_nodes.worker import WorkerEndpoint, load_problem
+from sim_nodes.worker import WorkerEndpoint, load_problem, worker_node
 
 ORACLE_FIELDS = {
     "robot": ("radius", "goal_tolerance", "stall_radius", "stall_time", "timeout", "clearance_cells"),
@@ -114,7 +113,7 @@ class Job:
 
 class SutAdapter:
     def __init__(self, argv: list[str] | None = None, node=None):
-        self.node = node or create_node("sut_adapter", argv=argv)
+        self.node, default_id = (node, None) if node is not None else worker_node("sut_adapter", argv)
         n = self.node
         p = n.declare_parameter
         self.problem_name = p("problem", "robot", "robot | vehicle | thermostat")
@@ -195,7 +194,7 @@ class SutAdapter:
         self._fast = None
         self._action = None
         self.endpoint = WorkerEndpoint(n, self.problem, self.accept,
-                                       lambda: len(self.queue) + (self.job is not None))
+                                       lambda: len(self.queue) + (self.job is not None), default_id)
         self.worker_id = self.endpoint.worker_id
         self.publish = self.endpoint.publish
         n.create_timer(0.02, self.idle)
@@ -331,6 +330,9 @@ class SutAdapter:
         if job is None or job.phase not in ("waiting", "running"):
             return
         pose = msg.pose.pose
+        o = pose.orientation
+        conversions.require_finite((pose.position.x, pose.position.y, o.x, o.y, o.z, o.w, msg.twist.twist.linear.x),
+                                   "odometry pose / twist")  # raises: the sample is dropped and counted
         self.samples.append((conversions.stamp_ns(msg.header), time.monotonic_ns(), float(pose.position.x),
                              float(pose.position.y), yaw_of(pose.orientation), float(msg.twist.twist.linear.x)))
 
@@ -338,7 +340,8 @@ class SutAdapter:
         job = self.job
         if job is None or job.phase not in ("waiting", "running"):
             return
-        self.samples.append((conversions.stamp_ns(msg.header), time.monotonic_ns(), float(msg.temperature)))
+        temperature = float(conversions.require_finite(msg.temperature, "temperature"))
+        self.samples.append((conversions.stamp_ns(msg.header), time.monotonic_ns(), temperature))
 
     def on_collision(self, msg: Any) -> None:
         if self.job is not None and self.job.phase == "running" and bool(msg.data):

@@ -1,6 +1,7 @@
 """A simulation worker node: scenarios in, results out, heartbeats so the generator can share work.
 
-Parameters: ``worker_id`` (unique per worker; default ``<node name>_<pid>``), ``model``
+Parameters: ``worker_id`` (unique per worker; see ``worker_node`` for how it and the node name
+relate: two workers started alike never share a node name), ``model``
 (``full``: the full-model simulator with the paper's oracles, default; ``surrogate``: the case
 study's fast surrogate), ``profile`` (fidelity profile of the problem: ``replication`` |
 ``refined``; '' = the config file's ``problem_config.profile``, else ``replication``),
@@ -35,6 +36,8 @@ scenarios run one by one and each result is published as soon as it exists.
 from __future__ import annotations
 
 import os
+import re
+import sys
 import threading
 import time
 from collections import deque
@@ -44,14 +47,19 @@ from ambiegen_ros.core.attributes import ScenarioError
 from ambiegen_ros.core.config import ConfigError, load_config_file
 from ambiegen_ros.problems import PROFILES, get_problem
 from ambiegen_ros.ros import conversions, topics
+from ambiegen_ros.ros.limits import check_name
 from ambiegen_ros.ros.qos import DEFAULT, LATCHED, STREAM
 from ambiegen_ros.ros.transport import create_node
+from ambiegen_ros.ros.transport.base import normalize_namespace
+from ambiegen_ros.ros.transport.params import parse_ros_args, resolve_parameters
 from ambiegen_ros.sims import Outcome, SurrogateExecutor, full_model_executor
 from ambiegen_ros.sims.full_model import scenario_seed
 from ambiegen_ros.nodes import run_node
 from ambiegen_ros.nodes.execution import run_profile
 
 MODELS = ("full", "surrogate")
+MAX_RUNS_REMEMBERED = 256  # run configs (run id -> profile) a worker keeps; the oldest is forgotten
+MAX_DETAIL = 2000  # characters of a rejection's detail (a hostile field name could be megabytes)
 
 
 def load_problem(node: Any, problem_name: str) -> Any:
@@ -75,6 +83,42 @@ def load_problem(node: Any, problem_name: str) -> Any:
         raise ConfigError(f"config: problem_config: {exc}")
 
 
+def node_name_for(worker_id: str) -> str:
+    """A valid ROS node name for a worker id: letters, digits and '_', not starting with a digit."""
+    name = re.sub(r"[^A-Za-z0-9_]", "_", worker_id)
+    return name if name and not name[0].isdigit() else f"w_{name}"
+
+
+def worker_node(default_name: str, argv: list[str] | None = None) -> tuple[Any, str]:
+    """The node of a worker, named so that workers started alike (``ros2 run`` twice) never collide.
+
+    Returns the node and the ``worker_id`` default. The rule:
+
+    * ``-r __node:=NAME`` names the node, as in any ROS node; ``worker_id`` defaults to ``NAME_<pid>``;
+    * else a given ``worker_id`` names the node (made a valid node name);
+    * else both are ``<default_name>_<pid>``.
+
+    Parameter-file entries keyed by ``default_name`` still apply to the renamed node.
+    """
+    args = list(sys.argv if argv is None else argv)
+    ros_args = parse_ros_args(args)
+    remapped = ros_args.node_name_override(default_name)
+    namespace = normalize_namespace(ros_args.namespace_override(default_name) or "").rstrip("/")
+    base = remapped or default_name
+    given = resolve_parameters(ros_args, f"{namespace}/{base}")
+    default_id = f"{base}_{os.getpid()}"
+    worker_id = given.get("worker_id")
+    if remapped:
+        name = remapped
+    elif isinstance(worker_id, str) and worker_id:
+        name = node_name_for(worker_id)
+    else:
+        name = default_id
+    own = resolve_parameters(ros_args, f"{namespace}/{name}")
+    inherited = {k: v for k, v in given.items() if k not in own}  # file entries keyed by the default name
+    return create_node(name, argv=args, parameter_overrides=inherited or None), default_id
+
+
 class WorkerEndpoint:
     """The worker side every executing node shares (sim workers, the SUT adapter).
 
@@ -87,13 +131,16 @@ class WorkerEndpoint:
     """
 
     def __init__(self, node: Any, problem: Any, accept: Callable[[str, int, Any, Any], None],
-                 in_flight: Callable[[], int]):
+                 in_flight: Callable[[], int], default_id: str | None = None):
         self.node = node
         self.problem = problem
         self._accept = accept
         self._in_flight = in_flight
         n = node
-        self.worker_id = n.declare_parameter("worker_id", f"{n.name}_{os.getpid()}", "unique id of this worker")
+        self.worker_id = n.declare_parameter(
+            "worker_id", default_id or f"{n.name}_{os.getpid()}", "unique id of this worker"
+        )
+        check_name(self.worker_id, "worker_id")  # it names files downstream (logs, reports)
         period = n.declare_parameter("heartbeat_period", 0.5, "seconds between heartbeats")
         self.min_result_subscribers = n.declare_parameter(
             "min_result_subscribers", 1, "wait for this many result subscribers before announcing"
@@ -119,7 +166,8 @@ class WorkerEndpoint:
         make = self.node.new_message
         self.heartbeats.publish(
             conversions.heartbeat_message(
-                make, self.worker_id, self.problem.name, self._in_flight(), self.executed, {"profile": self.problem.profile}
+                make, self.worker_id, self.problem.name, self._in_flight(), self.executed,
+                {"profile": self.problem.profile, **{f"input_{k}": v for k, v in self.node.input_stats().items()}}
             )
         )
 
@@ -140,6 +188,8 @@ class WorkerEndpoint:
     def on_run_config(self, msg: Any) -> None:
         profile = run_profile(msg.config_json)
         if profile is not None:
+            if len(self.run_profiles) >= MAX_RUNS_REMEMBERED and msg.run_id not in self.run_profiles:
+                self.run_profiles.pop(next(iter(self.run_profiles)))  # the oldest run: memory stays bounded
             self.run_profiles[msg.run_id] = profile
             if profile != self.problem.profile:
                 self.node.logger.error(
@@ -162,17 +212,18 @@ class WorkerEndpoint:
         if meta.assigned_worker not in ("", self.worker_id):
             return
         start = time.perf_counter()
+        run_id = conversions.safe_echo(meta.run_id)  # a hostile run id is not echoed as is
         mismatch = self.profile_mismatch(meta.run_id)
         if mismatch is not None:
-            self.publish(meta.run_id, meta.scenario_id, Outcome.rejected(mismatch, kind="error"), start)
+            self.publish(run_id, meta.scenario_id, Outcome.rejected(mismatch[:MAX_DETAIL], kind="error"), start)
             return
         try:
             scenario, _ = conversions.scenario_from_message(self.problem, msg)
             self._accept(meta.run_id, int(meta.scenario_id), scenario, msg)
         except ScenarioError as exc:
-            self.publish(meta.run_id, meta.scenario_id, Outcome.rejected(str(exc)), start)
+            self.publish(run_id, meta.scenario_id, Outcome.rejected(str(exc)[:MAX_DETAIL]), start)
         except Exception as exc:  # e.g. arrays of inconsistent shapes: still an answer
-            self.publish(meta.run_id, meta.scenario_id, Outcome.rejected(f"{type(exc).__name__}: {exc}", kind="error"), start)
+            self.publish(run_id, meta.scenario_id, Outcome.rejected(f"{type(exc).__name__}: {exc}"[:MAX_DETAIL], kind="error"), start)
 
     def publish(self, run_id: str, scenario_id: int, outcome: Outcome, start: float | None = None) -> None:
         if start is not None:
@@ -186,7 +237,7 @@ class WorkerEndpoint:
 
 class SimWorker:
     def __init__(self, problem_name: str, argv: list[str] | None = None, node=None):
-        self.node = node or create_node(f"{problem_name}_sim", argv=argv)
+        self.node, default_id = (node, None) if node is not None else worker_node(f"{problem_name}_sim", argv)
         n = self.node
         batch_period = n.declare_parameter("batch_period", 0.002, "seconds to collect scenarios into one batch")
         self.max_batch = max(1, n.declare_parameter("max_batch", 256, "most scenarios executed in one batch"))
@@ -205,7 +256,7 @@ class SimWorker:
             self.executor = SurrogateExecutor(self.problem)
             self.timeline = None
         self.pending: deque[tuple[str, int, Any, int]] = deque()  # (run id, scenario id, scenario, run seed)
-        self.endpoint = WorkerEndpoint(n, self.problem, self.accept, lambda: len(self.pending))
+        self.endpoint = WorkerEndpoint(n, self.problem, self.accept, lambda: len(self.pending), default_id)
         self.worker_id = self.endpoint.worker_id
         self.publish = self.endpoint.publish
         self.stop = self.endpoint.stop

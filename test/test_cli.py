@@ -171,3 +171,12 @@ def test_every_node_answers_help_without_starting(module):
     out = subprocess.run([sys.executable, "-m", module, "--help"], capture_output=True, text=True, timeout=60)
     assert out.returncode == 0 and out.stdout.startswith("usage:")
     assert "Parameters" in out.stdout or "parameters" in out.stdout or "-p " in out.stdout
+
+
+def test_recover_bad_input_is_one_line_and_writes_nothing(tmp_path):
+    text = write(tmp_path, "notes.mcap", "not an MCAP file")
+    for args in ([str(text)], [str(tmp_path / "missing.mcap")]):
+        out = ambiegen("recover", *args)
+        lines = out.stderr.strip().splitlines()
+        assert out.returncode == 2 and len(lines) == 1 and "Traceback" not in out.stderr, out.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.mcap"] and text.read_text() == "not an MCAP file"

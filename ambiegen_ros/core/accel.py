@@ -10,16 +10,18 @@ import warnings
 from typing import Any, Callable
 
 _NUMBA: Any = None  # the numba module, or False once an import failed
+_NUMBA_ERROR = ""  # why it failed ("ExceptionType: message")
 
 
 def numba_module() -> Any:
-    global _NUMBA
+    """numba, or False (after one RuntimeWarning) when importing it fails for any reason."""
+    global _NUMBA, _NUMBA_ERROR
     if _NUMBA is None:
         try:
             import numba
         except Exception as exc:  # ImportError, or a broken dependency (AttributeError, ...)
-            warnings.warn(f"numba unavailable ({type(exc).__name__}: {exc}); using the numpy paths", RuntimeWarning,
-                          stacklevel=2)
+            _NUMBA_ERROR = f"{type(exc).__name__}: {exc}"
+            warnings.warn(f"numba unavailable ({_NUMBA_ERROR}); using the numpy paths", RuntimeWarning, stacklevel=2)
             _NUMBA = False
         else:
             _NUMBA = numba
@@ -32,3 +34,9 @@ def jit(func: Callable) -> Callable | None:
     if not numba:
         return None
     return numba.njit(cache=True, error_model="numpy")(func)
+
+
+def numba_error() -> str:
+    """Why numba does not load ('' when it does); tries the import once."""
+    numba_module()
+    return _NUMBA_ERROR

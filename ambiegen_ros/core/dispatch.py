@@ -8,10 +8,35 @@ Rules:
 * each scenario is assigned to one alive worker (least loaded, ties by name), at most
   ``max_in_flight`` per worker; with no worker known after ``worker_wait`` seconds scenarios are
   offered to anyone (``worker = ""``), which suits external systems that send no heartbeat;
-* a scenario whose worker died, or whose result did not come within ``result_timeout``, is
-  re-assigned (preferring another worker) until ``max_attempts`` attempts were made; then it is
-  given up and must be recorded as an explicit timeout;
+* a scenario whose worker died (fell silent, crashed, lost its network link) goes back to the
+  front of the queue for the next live worker; that never counts against the scenario, so while
+  any worker lives the scenario is executed rather than recorded as a timeout;
+* a scenario whose result did not come within ``result_timeout`` from a worker that stayed alive
+  (a hung simulation) is re-assigned, preferring a worker that has not tried it, until it was
+  late ``max_attempts`` times; then it is given up and must be recorded as an explicit timeout;
+* a worker whose last heartbeat is older than half of ``worker_timeout`` is suspect: it gets no
+  new scenario while a worker with fresh heartbeats lives (even a busy one), so a scenario taken
+  from a worker of a host that just lost its link is not handed to its neighbour on that same
+  host, about to be declared dead too;
+* a scenario can be lost on its way to a live worker: a heartbeat only proves that the worker
+  sees our result and heartbeat readers, its reader of scenarios may not have matched our writer
+  yet (DDS discovery runs per direction), and a scenario published before that match never
+  reaches it. Such a worker used to look full with lost scenarios until ``result_timeout``. So a
+  worker that (re)appears is on probation: it holds one scenario until it answers one, or for
+  ``worker_timeout``, then gets its full share (nothing is taken from it: a slow first run, e.g.
+  a JIT compile, must not be executed twice). And a worker executes what it is sent in order, so
+  when it answers an executed scenario (``executed=True``: not a rejection, which is answered on
+  arrival) every scenario sent to it earlier and still open never reached it: those go back to
+  the queue at once, never counted against them;
+* silence is counted in time we listened: a tick after a pause of our own longer than half of
+  ``worker_timeout`` with no heartbeat read meanwhile (the caller was busy, e.g. a first JIT
+  compile, and the heartbeats are still waiting to be read) moves every worker's last heartbeat
+  forward by that pause, so a busy
+  generator neither declares its workers lost nor offers their scenarios to anyone;
 * the first result for a scenario settles it; later duplicates are reported as such.
+
+What happened to workers (joined, lost, back, unanswered, skipped) is kept in ``events`` (the latest
+``MAX_EVENTS``) for the node to log.
 """
 from __future__ import annotations
 
@@ -19,14 +44,32 @@ from dataclasses import dataclass, field
 from typing import Any
 
 
+MAX_EVENTS = 1000  # worker events kept until drained (a node that never drains stays bounded)
+
+
 @dataclass
 class Ticket:
     scenario_id: int
     payload: Any
-    attempts: int = 0
+    attempts: int = 0  # times sent
+    sent_seq: int = 0  # order of its last send among all sends
+    late: int = 0  # times its result did not come in time from a worker that stayed alive (or anyone)
     worker: str | None = None  # None = queued; "" = offered to anyone
     sent_at: float = 0.0
     tried: list[str] = field(default_factory=list)
+
+
+@dataclass
+class WorkerEvent:
+    """A change in the worker set: ``lost`` (with seconds silent and scenarios re-queued), ``joined``,
+    ``back``; ``unanswered``: a worker on probation did not answer its first scenario in time (it
+    gets its full share); ``skipped``: scenarios a worker never got, re-queued."""
+
+    kind: str
+    worker: str
+    at: float
+    silent_s: float = 0.0
+    requeued: int = 0
 
 
 @dataclass
@@ -56,6 +99,13 @@ class Dispatcher:
         self.max_in_flight = max_in_flight
         self._start = start
         self._workers: dict[str, float] = {}
+        self._lost: set[str] = set()  # workers declared dead (so their return is noticed)
+        self._proven: set[str] = set()  # workers past probation since they (re)appeared
+        self._held: dict[str, dict[int, int]] = {}  # worker -> {scenario id: send order} it holds
+        self._sends = 0
+        self._last_tick: float | None = None
+        self._heard = False  # a heartbeat was read since the last tick
+        self.events: list[WorkerEvent] = []
         self._tickets: dict[int, Ticket] = {}
         self._queue: list[int] = []
         self.settled: dict[int, str] = {}  # scenario id -> worker that answered ("" = gave up)
@@ -73,18 +123,61 @@ class Dispatcher:
         self._queue.append(scenario_id)
 
     def heartbeat(self, worker: str, now: float) -> None:
-        self._workers[worker] = now
+        if worker not in self._workers:
+            self._event("joined", worker, now)
+        elif worker in self._lost or now - self._workers[worker] > self.worker_timeout:
+            self._lost.discard(worker)
+            self._event("back", worker, now, silent_s=now - self._workers[worker])
+        self._workers[worker] = max(now, self._workers.get(worker, now))
+        self._heard = True
 
-    def result(self, scenario_id: int, worker: str) -> bool:
-        """Record a result; True if it is the first one for this scenario (i.e. to be used)."""
+    def drain_events(self) -> list[WorkerEvent]:
+        events, self.events = self.events, []
+        return events
+
+    def _event(self, *args, **kwargs) -> WorkerEvent:
+        event = WorkerEvent(*args, **kwargs)
+        self.events.append(event)
+        del self.events[:-MAX_EVENTS]
+        return event
+
+    def result(self, scenario_id: int, worker: str, executed: bool = True, now: float = 0.0) -> bool:
+        """Record a result; True if it is the first one for this scenario (i.e. to be used).
+
+        ``executed``: the worker ran the scenario (False for rejections answered on arrival), so
+        whatever it was sent before this one and has not answered never reached it."""
+        if worker in self._workers:
+            self._proven.add(worker)  # even a late duplicate shows our scenarios reach it
+        held = self._held.get(worker, {})
+        if executed and scenario_id in held:
+            skipped = [sid for sid, seq in held.items() if seq < held[scenario_id]]
+            for sid in skipped:
+                self._release(self._tickets[sid])
+            if skipped:
+                self._queue = sorted(skipped) + self._queue
+                self._event("skipped", worker, now, requeued=len(skipped))
         if scenario_id in self.settled or scenario_id not in self._tickets:
             self.duplicates += 1
             return False
+        self._release(self._tickets[scenario_id])
         self._tickets.pop(scenario_id)
         if scenario_id in self._queue:
             self._queue.remove(scenario_id)
         self.settled[scenario_id] = worker
         return True
+
+    def forget(self, scenario_ids: list[int]) -> None:
+        """Drop settled scenarios the caller is done with, so a long run's memory stays flat.
+
+        A late duplicate result for one of them is still counted as a duplicate (it has no ticket).
+        """
+        for scenario_id in scenario_ids:
+            self.settled.pop(scenario_id, None)
+
+    def _release(self, ticket: Ticket) -> None:
+        """The ticket is no longer held by its worker (answered, re-queued or given up)."""
+        self._held.get(ticket.worker or "", {}).pop(ticket.scenario_id, None)
+        ticket.worker = None
 
     # --- decisions -----------------------------------------------------------------------
     def alive(self, now: float) -> list[str]:
@@ -92,46 +185,74 @@ class Dispatcher:
 
     def tick(self, now: float) -> tuple[list[Assignment], list[Ticket]]:
         """Advance time: returns (assignments to publish now, tickets given up -> timeout records)."""
+        pause = 0.0 if self._last_tick is None else now - self._last_tick
+        self._last_tick, heard, self._heard = now, self._heard, False
+        if pause > self.worker_timeout / 2 and not heard:  # we were not listening: not their silence
+            self._workers = {w: min(now, seen + pause) for w, seen in self._workers.items()}
         alive = self.alive(now)
+        for worker, seen in self._workers.items():
+            if worker not in alive and worker not in self._lost:
+                self._lost.add(worker)
+                self._proven.discard(worker)
+                self._event("lost", worker, now, silent_s=now - seen)
+        requeued: dict[str, int] = {}
         given_up: list[Ticket] = []
         retry: list[int] = []
         for ticket in list(self._tickets.values()):
             if ticket.worker is None:
                 continue
-            worker_dead = ticket.worker != "" and ticket.worker not in alive
-            late = now - ticket.sent_at > self.result_timeout
-            if worker_dead or late:
-                if ticket.attempts >= self.max_attempts:
+            if ticket.worker != "" and ticket.worker not in alive:  # not the scenario's fault
+                requeued[ticket.worker] = requeued.get(ticket.worker, 0) + 1
+            elif ticket.worker and ticket.worker not in self._proven and now - ticket.sent_at > self.worker_timeout:
+                # probation over without an answer: slow, or the scenario never reached it. Give it
+                # more; an answer to a later one will tell (see ``result``)
+                self._event("unanswered", ticket.worker, now)
+                self._proven.add(ticket.worker)
+                continue
+            elif now - ticket.sent_at > self.result_timeout:
+                ticket.late += 1
+                if ticket.late >= self.max_attempts:
+                    self._release(ticket)
                     self._tickets.pop(ticket.scenario_id)
                     self.settled[ticket.scenario_id] = ""
                     given_up.append(ticket)
-                else:
-                    ticket.worker = None
-                    retry.append(ticket.scenario_id)
+                    continue
+            else:
+                continue
+            self._release(ticket)
+            retry.append(ticket.scenario_id)
+        for event in self.events:
+            if event.kind == "lost" and event.worker in requeued:
+                event.requeued += requeued.pop(event.worker)
         self._queue = retry + self._queue  # retries first: they have waited longest
         return self._assign(alive, now), given_up
 
     def _assign(self, alive: list[str], now: float) -> list[Assignment]:
         out: list[Assignment] = []
         load = {w: 0 for w in alive}
+        cap = {w: self.max_in_flight if w in self._proven else 1 for w in alive}  # probation: one at a time
         for ticket in self._tickets.values():
             if ticket.worker in load:
                 load[ticket.worker] += 1
         anyone = not alive and now - self._start >= self.worker_wait
+        fresh = [w for w in alive if now - self._workers[w] <= self.worker_timeout / 2]
+        usable = fresh or alive
         remaining = []
         for scenario_id in self._queue:
             ticket = self._tickets[scenario_id]
             if anyone:
                 worker = ""
             else:
-                free = [w for w in alive if load[w] < self.max_in_flight]
+                free = [w for w in usable if load[w] < cap[w]]
                 if not free:
                     remaining.append(scenario_id)
                     continue
-                fresh = [w for w in free if w not in ticket.tried] or free
-                worker = min(fresh, key=lambda w: (load[w], w))
+                worker = min(free, key=lambda w: (w in ticket.tried, load[w], w))
                 load[worker] += 1
             ticket.worker = worker
+            self._sends += 1
+            ticket.sent_seq = self._sends
+            self._held.setdefault(worker, {})[scenario_id] = ticket.sent_seq
             ticket.attempts += 1
             ticket.sent_at = now
             ticket.tried.append(worker)

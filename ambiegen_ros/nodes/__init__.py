@@ -17,14 +17,18 @@ def run_node(
 ) -> int:
     """The shared ``main()`` of every node: build it, spin until SIGINT/SIGTERM or done, clean up.
 
-    ``make`` returns an object with a ``node``; a bad parameter or config exits with status 2 and
-    one line. ``finish`` runs before the node shuts down (close files, stop threads) and may
-    return the exit code.
+    ``make`` returns an object with a ``node``; a bad parameter or config, or a missing or too old
+    library (``deps``), exits with status 2 and one line. ``finish`` runs before the node shuts
+    down (close files, stop threads) and may return the exit code.
     """
     if doc and wants_help():
         print(f"usage: {label} [--ros-args -p NAME:=VALUE ... | --params-file FILE.yaml]\n")
         print(doc.strip())
         return 0
+    from ..deps import broken_environment
+
+    if broken_environment(label):
+        return 2
     from ..core.attributes import ScenarioError
     from ..core.config import ConfigError
     from ..ros.transport import TransportError

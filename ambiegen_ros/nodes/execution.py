@@ -3,7 +3,8 @@
 Shared by the generator and replay nodes. ``core.dispatch.Dispatcher`` decides who gets what and
 when to give up; this class only turns its decisions into messages and results into outcomes.
 Every scenario added ends in ``outcomes`` with the worker's outcome or a ``sim_timeout`` outcome
-that is also published as an explicit result record.
+that is also published as an explicit result record. Only open scenarios are kept, and outcomes
+only until ``take``n, so memory does not grow with the length of a run (``bench/soak.py``).
 
 A worker whose heartbeat names another fidelity profile than this run's problem is never given a
 scenario (it would score another environment); it is reported once in the log. Scenarios offered
@@ -20,8 +21,9 @@ from ..core.dispatch import Dispatcher
 from ..problems.base import Problem
 from ..ros import conversions, topics
 from ..ros.conversions import ScenarioMeta
+from ..ros.limits import MAX_JSON_DEPTH, check_name, json_depth
 from ..ros.qos import DEFAULT, STREAM
-from ..sims.outcome import Outcome
+from ..sims.outcome import FAILURE_KINDS, Outcome
 
 DISPATCH_PARAMETERS = {
     "result_timeout": (30.0, "seconds to wait for a scenario's result"),
@@ -34,14 +36,17 @@ DISPATCH_PARAMETERS = {
 
 def run_profile(config_json: str) -> str | None:
     """The fidelity profile a run config (``RunConfig.config_json``) names; None when it names none."""
+    if json_depth(config_json) > MAX_JSON_DEPTH:
+        return None
     try:
         config = json.loads(config_json)
     except ValueError:
         return None
     if not isinstance(config, dict):
         return None
-    profile = config.get("profile") or (config.get("problem_config") or {}).get("profile")
-    return str(profile) if profile else None
+    problem_config = config.get("problem_config")
+    profile = config.get("profile") or (problem_config.get("profile") if isinstance(problem_config, dict) else None)
+    return str(profile) if isinstance(profile, str) and profile else None
 
 
 class RemoteExecution:
@@ -57,9 +62,10 @@ class RemoteExecution:
         self.pub_results = node.create_publisher(topics.RESULT_TYPE, topics.RESULTS, STREAM)
         node.create_subscription(topics.RESULT_TYPE, topics.RESULTS, self.on_result, STREAM)
         node.create_subscription(topics.WORKERS_TYPE, topics.WORKERS, self.on_worker, DEFAULT)
-        self.scenarios: dict[int, tuple[Any, ScenarioMeta]] = {}
-        self.outcomes: dict[int, Outcome] = {}
-        self.workers: dict[int, str] = {}
+        self.scenarios: dict[int, tuple[Any, ScenarioMeta]] = {}  # not settled yet (a re-assignment re-sends them)
+        self.outcomes: dict[int, Outcome] = {}  # settled, until the caller ``take``s them
+        self.added = 0
+        self.settled = 0
         self.published = 0
         self.failures = 0
         self.timeouts = 0
@@ -68,11 +74,19 @@ class RemoteExecution:
         self.foreign_workers: set[str] = set()  # workers of another fidelity profile, never used
 
     def add(self, scenario: Any, meta: ScenarioMeta) -> None:
-        self.scenarios[meta.scenario_id] = (scenario, meta)
         self.dispatcher.add(meta.scenario_id, meta.scenario_id)
+        self.scenarios[meta.scenario_id] = (scenario, meta)
+        self.added += 1
 
     def next_id(self) -> int:
-        return len(self.scenarios)
+        return self.added
+
+    def take(self, scenario_ids: list[int]) -> list[Outcome]:
+        """The outcomes of settled scenarios, forgotten here and in the dispatcher (a long
+        in-the-loop run keeps only its open scenarios in memory)."""
+        outcomes = [self.outcomes.pop(i) for i in scenario_ids]
+        self.dispatcher.forget(scenario_ids)
+        return outcomes
 
     def begin(self) -> None:
         self.dispatcher.begin(time.monotonic())
@@ -93,7 +107,7 @@ class RemoteExecution:
                 f"no result after {ticket.attempts} attempt(s) (workers tried: {', '.join(ticket.tried) or 'any'})",
                 kind="sim_timeout",
             )
-            self._settle(ticket.scenario_id, self.node.name, outcome)
+            self._settle(ticket.scenario_id, outcome)
             self.pub_results.publish(
                 conversions.result_message(make, stamp, self.run_id, ticket.scenario_id, self.problem.name, self.node.name, outcome)
             )
@@ -101,17 +115,20 @@ class RemoteExecution:
     def on_result(self, msg: Any) -> None:
         if msg.run_id != self.run_id or msg.worker == self.node.name:
             return
-        if not self.dispatcher.result(int(msg.scenario_id), msg.worker):
+        # a rejection is answered on arrival, an execution in the order sent (see core.dispatch)
+        executed = int(msg.failure_kind) not in (FAILURE_KINDS["invalid_scenario"], FAILURE_KINDS["error"])
+        if not self.dispatcher.result(int(msg.scenario_id), msg.worker, executed, time.monotonic()):
             return
         try:
             outcome = conversions.outcome_from_message(msg)
         except ScenarioError as exc:
             outcome = Outcome.rejected(f"unreadable result: {exc}", kind="error")
-        self._settle(int(msg.scenario_id), msg.worker, outcome)
+        self._settle(int(msg.scenario_id), outcome)
 
-    def _settle(self, scenario_id: int, worker: str, outcome: Outcome) -> None:
+    def _settle(self, scenario_id: int, outcome: Outcome) -> None:
+        self.scenarios.pop(scenario_id, None)  # never sent again
         self.outcomes[scenario_id] = outcome
-        self.workers[scenario_id] = worker
+        self.settled += 1
         self.failures += outcome.failed
         self.timeouts += outcome.failure_kind == "sim_timeout"
         self.errors += outcome.failure_kind == "error"
@@ -120,6 +137,7 @@ class RemoteExecution:
     def on_worker(self, msg: Any) -> None:
         if msg.hardware_id != self.problem.name:
             return
+        check_name(msg.name, "heartbeat name")  # raises: the transport drops and counts the sample
         profile = next((kv.value for kv in msg.values if kv.key == "profile"), self.problem.profile)
         if profile != self.problem.profile:
             if msg.name not in self.foreign_workers:

@@ -44,6 +44,7 @@ from ..core.search import Search
 from ..problems.base import PROFILES, Evaluation
 from ..ros import conversions, topics
 from ..ros.conversions import ScenarioMeta
+from ..ros.limits import check_name
 from ..ros.qos import DEFAULT, LATCHED
 from ..ros.transport import create_node
 from .execution import RemoteExecution
@@ -68,7 +69,7 @@ class Generator:
         config_file = p("config_file", "", "YAML run config (search settings + problem_config)")
         self.suite_file = p("suite_file", "", "write the final suite here as JSON ('' = none)")
         self.mode = p("mode", "surrogate", "surrogate | in_the_loop")
-        self.run_id = p("run_id", "", "run id ('' = generated)") or f"run-{uuid.uuid4().hex[:8]}"
+        self.run_id = check_name(p("run_id", "", "run id ('' = generated)") or f"run-{uuid.uuid4().hex[:8]}", "run_id")
         self.min_subscribers = p("min_subscribers", 1, "scenario subscribers to wait for before publishing")
         self.min_workers = p("min_workers", 0, "sim workers (heartbeats) to wait for before publishing")
         self.subscriber_wait = p("subscriber_wait", 10.0, "seconds to wait for subscribers and workers")
@@ -125,6 +126,8 @@ class Generator:
                         f"{subscribers} of {self.min_subscribers} subscribers and {workers} of "
                         f"{self.min_workers} workers after {self.subscriber_wait:g} s; going on"
                     )
+                else:
+                    self.node.logger.info(f"{subscribers} subscribers and {workers} workers: starting")
                 if self.mode == "surrogate":
                     self.state = "searching"
                 else:
@@ -137,14 +140,36 @@ class Generator:
                     self.start_suite()
                     break
         elif self.state == "executing":
-            if self.mode == "in_the_loop" and not self.batch and not self.ask_batch():
-                self.finish()
+            if self.mode == "in_the_loop" and not self.batch:
+                if not self.ask_batch():
+                    self.finish()
+                # asking can take long (a first JIT compile): read the heartbeats and results
+                # that came meanwhile before judging workers on the next tick
                 return
             self.remote.tick()
+            self.log_worker_events()
             if self.mode == "in_the_loop":
                 self.tell_if_complete()
             elif self.remote.done():
                 self.finish()
+
+    def log_worker_events(self) -> None:
+        """Workers lost, joined or back, as the dispatcher saw them (how long detection took)."""
+        for e in self.remote.dispatcher.drain_events():
+            if e.kind == "lost":
+                self.node.logger.warning(
+                    f"worker {e.worker} lost (silent {e.silent_s:.2f} s): {e.requeued} scenarios re-queued for live workers"
+                )
+            elif e.kind == "unanswered":
+                self.node.logger.info(f"worker {e.worker} has not answered its first scenario yet: giving it more")
+            elif e.kind == "skipped":
+                self.node.logger.warning(
+                    f"worker {e.worker} answered later scenarios but never got {e.requeued}: re-queued"
+                )
+            elif e.kind == "back":
+                self.node.logger.info(f"worker {e.worker} is back after {e.silent_s:.2f} s of silence")
+            elif self.state == "executing":
+                self.node.logger.info(f"worker {e.worker} joined")
 
     def start_suite(self) -> None:
         result = self.search.result()
@@ -181,7 +206,7 @@ class Generator:
     def tell_if_complete(self) -> None:
         if any(i not in self.remote.outcomes for i in self.batch):
             return
-        outcomes = [self.remote.outcomes[i] for i in self.batch]
+        outcomes = self.remote.take(self.batch)  # told once: nothing of a generation is kept after
         usable = np.array([o.failure_kind not in ("invalid_scenario", "error", "sim_timeout") for o in outcomes])
         f1 = np.array([o.f1 if ok else 0.0 for o, ok in zip(outcomes, usable)])
         reasons = [None if ok else f"{o.failure_kind}: {o.detail}" for o, ok in zip(outcomes, usable)]
@@ -204,7 +229,7 @@ class Generator:
         self.publish_status()
         r = self.remote
         self.node.logger.info(
-            f"run {self.run_id} done: {r.published} scenarios, {len(r.outcomes)} settled, "
+            f"run {self.run_id} done: {r.published} scenarios, {r.settled} settled, "
             f"{r.failures} failures, {r.timeouts} timeouts, {r.errors} errors, {r.invalid} invalid"
         )
         if self.exit_when_done:
@@ -233,7 +258,7 @@ class Generator:
                 best_f1=float(self.search.best_f1),
                 front_size=int(history["front_size"]),
                 scenarios_published=int(self.remote.published),
-                results_received=int(len(self.remote.outcomes)),
+                results_received=int(self.remote.settled),
                 state=self.state,
                 detail="",
             )

@@ -6,9 +6,12 @@ stored as MCAP metadata when the latched ``RunConfig`` arrives. The log is flush
 ``flush_period`` seconds and finalised on SIGINT/SIGTERM; after a SIGKILL,
 ``ambiegen recover FILE.mcap`` rebuilds a valid file with everything up to the last flush.
 
-Parameters: ``output`` (file path; default ``ambiegen_<utc time>.mcap``), ``flush_period`` (s),
-``compression`` (zstd | lz4 | none), ``extra_topics`` (``topic=pkg/msg/Type`` entries to record
-besides the AmbieGen topics), ``discover`` (also record other topics found under ``/ambiegen``).
+Parameters: ``output`` (file path; default ``ambiegen_<random>_<utc time>.mcap``; the launch file
+and ``ambiegen campaign`` name it ``<run id>_<utc time>.mcap``), ``overwrite`` (false: an existing
+``output`` is refused with exit status 2, as rosbag2 does; true: it is replaced), ``flush_period``
+(s), ``compression`` (zstd | lz4 | none), ``extra_topics`` (``topic=pkg/msg/Type`` entries to
+record besides the AmbieGen topics), ``discover`` (also record other topics found under
+``/ambiegen``).
 """
 from __future__ import annotations
 
@@ -19,7 +22,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..ros import topics
-from ..ros.mcap_log import McapLog
+from ..ros.mcap_log import McapLog, log_file_name
 from ..ros.qos import DEFAULT, Qos
 from ..ros.transport import create_node
 from ..ros.types import get_registry
@@ -34,15 +37,20 @@ class Recorder:
         self.node = node or create_node("recorder", argv=argv)
         n = self.node
         stamp = datetime.now(timezone.utc).strftime("%Y%m%d_%H%M%S")
-        output = n.declare_parameter("output", f"ambiegen_{stamp}.mcap", "MCAP file to write")
+        output = n.declare_parameter("output", "", "MCAP file to write ('' = ambiegen_<random>_<utc time>.mcap)")
+        overwrite = n.declare_parameter("overwrite", False, "replace an existing output file (default: refuse it)")
         flush_period = n.declare_parameter("flush_period", 1.0, "seconds between flushes (data safe from SIGKILL)")
         compression = n.declare_parameter("compression", "zstd", "zstd | lz4 | none")
         extra = n.declare_parameter("extra_topics", "", "extra 'topic=pkg/msg/Type' entries to record, comma-separated")
         self.discover = n.declare_parameter("discover", True, "also record other topics under /ambiegen")
-        self.path = Path(output)
+        self.path = Path(output or log_file_name())
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.registry = get_registry()
-        self.log = McapLog(self.path, self.registry, compression=compression, library=f"ambiegen-ros {__version__} recorder")
+        try:
+            self.log = McapLog(self.path, self.registry, compression=compression,
+                               library=f"ambiegen-ros {__version__} recorder", overwrite=overwrite)
+        except FileExistsError as exc:  # one line and exit status 2 (run_node), the old log untouched
+            raise FileExistsError(f"{exc} (choose another output, or set overwrite:=true to replace it)") from None
         self.log.add_metadata("ambiegen_recorder", {"version": __version__, "started": stamp})
         self._config_seen = False
         for topic, typename, qos in topics.run_topics():

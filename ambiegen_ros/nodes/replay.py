@@ -15,8 +15,9 @@ import json
 import sys
 import time
 import uuid
+from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from mcap.reader import make_reader
 
@@ -24,7 +25,8 @@ from ..core.attributes import ScenarioError
 from ..core.scenario import Scenario
 from ..problems import get_problem
 from ..ros import topics
-from ..ros.conversions import ScenarioMeta, outcome_from_message
+from ..ros.conversions import ScenarioMeta, outcome_from_message, safe_echo
+from ..ros.mcap_log import create_file
 from ..ros.qos import from_offered_qos_yaml
 from ..ros.runlog import iter_messages
 from ..ros.transport import create_node
@@ -34,16 +36,27 @@ from .execution import RemoteExecution
 SCENARIO_TOPICS = {topics.scenarios(p): p for p in topics.SCENARIO_TYPES}
 
 
-def recorded_scenarios(path: str | Path) -> tuple[str, str, dict[int, Scenario], dict[int, Outcome]]:
-    """(problem, old run id, scenarios by id, first recorded outcome by id) from a log."""
+class Recorded(NamedTuple):
+    """What a log holds of its first run: enough to run it again the same way."""
+
+    problem: str
+    run_id: str
+    scenarios: dict[int, Scenario]
+    outcomes: dict[int, Outcome]  # the first recorded outcome of each scenario
+    seed: int  # the run's seed: the full models' noise is seeded from it, so a replay must reuse it
+
+
+def recorded_scenarios(path: str | Path) -> Recorded:
+    """The first run of a log: problem, run id, scenarios and outcomes by id, and its seed."""
     problem = run_id = ""
+    seed = 0
     scenarios: dict[int, Scenario] = {}
     outcomes: dict[int, Outcome] = {}
     for topic, _, _, msg in iter_messages(path, set(SCENARIO_TOPICS) | {topics.RESULTS}):
         if topic in SCENARIO_TOPICS:
             meta = msg.meta
             if not run_id:
-                run_id, problem = meta.run_id, SCENARIO_TOPICS[topic]
+                run_id, problem, seed = meta.run_id, SCENARIO_TOPICS[topic], int(meta.seed)
             if meta.run_id == run_id and int(meta.scenario_id) not in scenarios:
                 data = Scenario.parse_json(meta.scenario_json)
                 scenarios[int(meta.scenario_id)] = Scenario(data["problem"], data["elements"])
@@ -51,7 +64,7 @@ def recorded_scenarios(path: str | Path) -> tuple[str, str, dict[int, Scenario],
             outcomes[int(msg.scenario_id)] = outcome_from_message(msg)
     if not scenarios:
         raise ScenarioError("log", f"{path} holds no scenario messages", ", ".join(SCENARIO_TOPICS))
-    return problem, run_id, scenarios, outcomes
+    return Recorded(problem, run_id, scenarios, outcomes, seed)
 
 
 def compare(old: Outcome | None, new: Outcome) -> dict[str, Any]:
@@ -80,13 +93,18 @@ class Replay:
         self.log = log or n.declare_parameter("log", "", "MCAP file of a recorded run")
         self.mode = n.declare_parameter("mode", "publish", "publish | execute")
         self.rate = n.declare_parameter("rate", 1.0, "publish: speed factor of the recorded pace (0 = at once)")
-        self.report_path = n.declare_parameter("report", "", "execute: JSON regression report ('' = next to the log)")
+        self.report_path = n.declare_parameter("report", "", "execute: JSON regression report ('' = LOG.replay.json, "
+                                               "or LOG.replay-<UTC time>.json when that exists)")
+        self.overwrite = n.declare_parameter("overwrite", False, "replace an existing report file")
         self.min_subscribers = n.declare_parameter("min_subscribers", 1, "subscribers to wait for before publishing")
         self.subscriber_wait = n.declare_parameter("subscriber_wait", 10.0, "seconds to wait for them")
         if not self.log or not Path(self.log).exists():
             raise ScenarioError("log", f"no such MCAP file {self.log!r}")
         if self.mode not in ("publish", "execute"):
             raise ScenarioError("mode", f"unknown {self.mode!r}", "publish|execute")
+        if self.mode == "execute" and self.report_path and Path(self.report_path).exists() and not self.overwrite:
+            raise FileExistsError(f"report {self.report_path} already exists; refusing to overwrite it "
+                                  "(another name, or overwrite:=true)")
         self.report: dict[str, Any] | None = None
         self.exit_code = 0
 
@@ -119,12 +137,12 @@ class Replay:
 
     # --- execute: new results, compared with the recorded ones -----------------------------------
     def execute(self) -> dict[str, Any]:
-        problem_name, old_run, scenarios, old = recorded_scenarios(self.log)
+        problem_name, old_run, scenarios, old, seed = recorded_scenarios(self.log)
         problem = get_problem(problem_name)
-        run_id = f"replay-{old_run}-{uuid.uuid4().hex[:6]}"
+        run_id = f"replay-{safe_echo(old_run)[:100]}-{uuid.uuid4().hex[:6]}"  # a logged id is not trusted as a name
         remote = RemoteExecution(self.node, problem, run_id)
         for sid, scenario in sorted(scenarios.items()):
-            remote.add(problem.parse(scenario.to_dict()), ScenarioMeta(run_id, sid))
+            remote.add(problem.parse(scenario.to_dict()), ScenarioMeta(run_id, sid, seed=seed))
         self.node.wait_for_subscribers(remote.pub_scenarios, self.min_subscribers, self.subscriber_wait)
         remote.begin()
         self.node.create_timer(0.01, remote.tick)
@@ -137,6 +155,7 @@ class Replay:
             "log": str(self.log),
             "recorded_run_id": old_run,
             "replay_run_id": run_id,
+            "seed": seed,
             "problem": problem_name,
             "scenarios": len(scenarios),
             "settled": len(remote.outcomes),
@@ -145,12 +164,25 @@ class Replay:
             "fixed_failures": sorted(s for s, e in entries.items() if e["old"] and e["old"]["failed"] and not e["new"]["failed"]),
             "entries": {str(k): v for k, v in entries.items()},
         }
-        path = Path(self.report_path) if self.report_path else Path(self.log).with_suffix(".replay.json")
-        path.write_text(json.dumps(report, indent=2) + "\n")
+        path = self._write_report(json.dumps(report, indent=2) + "\n")
         report["report"] = str(path)
         self.node.logger.info(f"replayed {len(remote.outcomes)}/{len(scenarios)} scenarios; changes {changes}; report {path}")
         self.report = report
         return report
+
+    def _write_report(self, text: str) -> Path:
+        """The report never lands on an earlier one: an explicit path was checked at start-up (and is
+        created exclusively here), the default name gets a UTC time when ``LOG.replay.json`` exists."""
+        if self.report_path:
+            path = Path(self.report_path)
+        else:
+            path = Path(self.log).with_suffix(".replay.json")
+            if path.exists():
+                stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%S%fZ")
+                path = Path(self.log).with_suffix(f".replay-{stamp}.json")
+        with create_file(path, overwrite=bool(self.report_path) and self.overwrite) as fh:
+            fh.write(text.encode())
+        return path
 
     def run(self) -> int:
         try:
@@ -172,9 +204,13 @@ def main(argv: list[str] | None = None) -> int:
         print("usage: replay --ros-args -p log:=FILE.mcap [-p mode:=publish|execute] ...\n")
         print(__doc__.strip())
         return 0
+    from ..deps import broken_environment
+
+    if broken_environment("replay"):
+        return 2
     try:
         replay = Replay(argv)
-    except (ScenarioError, ValueError) as exc:
+    except (ScenarioError, ValueError, OSError) as exc:
         print(f"replay: error: {exc}", file=sys.stderr)
         return 2
     return replay.run()

@@ -428,15 +428,13 @@ _KERNEL: Any = None  # the numba-compiled ``_dijkstra_maps``, or False when numb
 
 
 def _kernel():
-    """Compile the planner on first use (cached on disk by numba); False without numba."""
+    """Compile the planner on first use (cached on disk by numba); False when numba does not load."""
     global _KERNEL
     if _KERNEL is None:
-        try:
-            import numba
-        except ImportError:
-            _KERNEL = False
-        else:
-            _KERNEL = numba.njit(cache=True)(_dijkstra_maps)
+        from ..core.accel import numba_module  # any import failure falls back, with one warning
+
+        numba = numba_module()
+        _KERNEL = numba.njit(cache=True)(_dijkstra_maps) if numba else False
     return _KERNEL
 
 

@@ -848,12 +848,16 @@ _KERNELS: Any = None  # dict of compiled kernels, or False when numba is unavail
 
 
 def _kernels():
-    """Compile the per-road loops on first use (cached on disk by numba); False without numba."""
+    """Compile the per-road loops on first use (cached on disk by numba); False when numba does not load.
+
+    ``core.accel`` imports numba (a broken install falls back with one warning, like any import error).
+    """
     global _KERNELS, _drive_jit, _distance_jit, _heading_jit, _repl_drive_jit
     if _KERNELS is None:
-        try:
-            import numba
-        except ImportError:
+        from ..core.accel import numba_module
+
+        numba = numba_module()
+        if not numba:
             _KERNELS = False
         else:
             jit = numba.njit(cache=True)

@@ -18,6 +18,7 @@ from ..core.scenario import Scenario
 from ..problems.base import Problem
 from ..sims.outcome import FAILURE_KINDS, FAILURE_NAMES, Outcome
 from . import topics
+from .limits import MAX_JSON_DEPTH, MAX_NAME_LENGTH, NAME_RULE, UnsafeName, check_name, json_depth
 
 Make = Callable[..., Any]
 
@@ -178,10 +179,46 @@ def occupancy_grid(make: Make, now_ns: int, env: Any) -> Any:
     return make("nav_msgs/msg/OccupancyGrid", header=header(make, now_ns), info=info, data=data)
 
 
-def grid_from_message(msg_grid: Any) -> np.ndarray:
-    """``nav_msgs/OccupancyGrid`` -> bool ``[y, x]`` (unknown cells count as occupied)."""
-    data = np.asarray(msg_grid.data, dtype=np.int16).reshape(msg_grid.info.height, msg_grid.info.width)
+def grid_from_message(msg_grid: Any, field: str = "map") -> np.ndarray:
+    """``nav_msgs/OccupancyGrid`` -> bool ``[y, x]`` (unknown cells count as occupied).
+
+    Raises ``ScenarioError`` naming the field when the size does not match the data or the
+    resolution / origin are not finite.
+    """
+    info = msg_grid.info
+    width, height, cells = int(info.width), int(info.height), len(msg_grid.data)
+    if width * height != cells or not cells:
+        raise ScenarioError(f"{field}.info", f"{width} x {height} cells but {cells} data values",
+                            "width * height == len(data) > 0")
+    res = float(info.resolution)
+    if not (math.isfinite(res) and res > 0):
+        raise ScenarioError(f"{field}.info.resolution", f"{res!r}", "a finite number > 0")
+    position = info.origin.position
+    require_finite((position.x, position.y), f"{field}.info.origin.position")
+    data = np.asarray(msg_grid.data, dtype=np.int16).reshape(height, width)
     return (data != 0)
+
+
+def require_finite(values: Any, field: str) -> np.ndarray:
+    """``values`` as a float array, or ``ScenarioError`` naming ``field`` if any is NaN or infinite."""
+    array = np.asarray(values, dtype=float)
+    if not np.all(np.isfinite(array)):
+        raise ScenarioError(field, "holds NaN or infinite values", "finite numbers")
+    return array
+
+
+def clip_text(text: Any, limit: int = 80) -> str:
+    """A hostile string shortened for an error message (repr, so control characters show)."""
+    text = str(text)
+    return repr(text) if len(text) <= limit else f"{text[:limit]!r}... ({len(text)} characters)"
+
+
+def safe_echo(name: str) -> str:
+    """An identifier as it may be echoed in a result: unchanged when safe, else defanged and clipped."""
+    try:
+        return check_name(name, "name", allow_empty=True)
+    except UnsafeName:
+        return "".join(c if c.isascii() and (c.isalnum() or c in "_-") else "_" for c in str(name)[:MAX_NAME_LENGTH])
 
 
 def scenario_from_message(problem: Problem, msg: Any) -> tuple[Scenario, dict[str, Any]]:
@@ -191,7 +228,14 @@ def scenario_from_message(problem: Problem, msg: Any) -> tuple[Scenario, dict[st
     """
     meta = msg.meta
     if meta.problem != problem.name:
-        raise ScenarioError("meta.problem", f"this node executes {problem.name!r}, got {meta.problem!r}", problem.name)
+        raise ScenarioError("meta.problem", f"this node executes {problem.name!r}, got {clip_text(meta.problem)}", problem.name)
+    try:
+        check_name(meta.run_id, "meta.run_id")
+    except UnsafeName:
+        raise ScenarioError("meta.run_id", f"unsafe name {clip_text(meta.run_id)}", NAME_RULE) from None
+    depth = json_depth(meta.scenario_json)
+    if depth > MAX_JSON_DEPTH:
+        raise ScenarioError("meta.scenario_json", f"nested {depth} levels deep", f"at most {MAX_JSON_DEPTH} levels")
     try:
         data = Scenario.parse_json(meta.scenario_json)
     except ScenarioError as exc:
@@ -246,7 +290,11 @@ def outcome_from_message(msg: Any) -> Outcome:
     kind = FAILURE_NAMES.get(int(msg.failure_kind))
     if kind is None:
         raise ScenarioError("failure_kind", f"unknown code {msg.failure_kind}", ", ".join(map(str, FAILURE_NAMES)))
-    objectives = {str(n): float(v) for n, v in zip(msg.objective_names, msg.objectives)}
+    if len(msg.objective_names) != len(msg.objectives):
+        raise ScenarioError("objectives", f"{len(msg.objectives)} values for {len(msg.objective_names)} names",
+                            "one value per objective name")
+    values = require_finite(msg.objectives, "objectives")
+    objectives = {str(n): float(v) for n, v in zip(msg.objective_names, values)}
     traj = path_points(msg.trajectory)
     return Outcome(
         objectives=objectives,

@@ -15,10 +15,12 @@ from __future__ import annotations
 
 import io
 import os
+import secrets
 import struct
 import threading
+from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, BinaryIO, Callable
 
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
@@ -47,8 +49,32 @@ def _default_library() -> str:
     return f"ambiegen-ros {__version__}"
 
 
+def create_file(path: str | os.PathLike, overwrite: bool = False) -> BinaryIO:
+    """Open a new file for writing; an existing one is refused (``FileExistsError``) unless ``overwrite``.
+
+    Check and creation are one system call (``O_EXCL``), so a writer started on the same name at
+    the same moment cannot truncate what another one wrote (as ``rosbag2`` refuses an existing bag).
+    """
+    try:
+        return open(path, "wb" if overwrite else "xb")
+    except FileExistsError:
+        raise FileExistsError(f"{path} already exists; refusing to overwrite it") from None
+
+
+def log_file_name(run_id: str | None = None, when: datetime | None = None) -> str:
+    """``<run id>_<UTC time>.mcap`` (``ambiegen_<random>_<UTC time>.mcap`` without a run id).
+
+    A default name that differs for every recording, so no run lands on an earlier run's log.
+    """
+    stamp = (when or datetime.now(timezone.utc)).strftime("%Y%m%dT%H%M%SZ")
+    return f"{run_id or 'ambiegen_' + secrets.token_hex(3)}_{stamp}.mcap"
+
+
 class McapLog:
-    """Append-only MCAP writer for one recording (thread-safe; one lock around each call)."""
+    """Append-only MCAP writer for one recording (thread-safe; one lock around each call).
+
+    The file must not exist yet (``FileExistsError``) unless ``overwrite``.
+    """
 
     def __init__(
         self,
@@ -57,12 +83,13 @@ class McapLog:
         compression: str = "zstd",
         chunk_size: int = 1 << 20,
         library: str | None = None,
+        overwrite: bool = False,
     ):
         if compression not in _COMPRESSION:
             raise ValueError(f"compression must be one of zstd, lz4, none; got {compression!r}")
         self.path = Path(path)
         self.registry = registry
-        self._file = open(self.path, "wb")
+        self._file = create_file(self.path, overwrite)
         self._writer = Writer(self._file, chunk_size=chunk_size, compression=_COMPRESSION[compression])
         self._writer.start(profile=PROFILE, library=library or _default_library())
         self._lock = threading.Lock()
@@ -199,17 +226,20 @@ def _read_body(body: bytes, reader: Callable[[ReadDataStream], Any], length: int
     return reader(stream) if length is None else reader(stream, length)
 
 
-def recover(src: str | os.PathLike, dst: str | os.PathLike, compression: str = "zstd") -> dict:
+def recover(src: str | os.PathLike, dst: str | os.PathLike, compression: str = "zstd", overwrite: bool = False) -> dict:
     """Rewrite a (possibly truncated) MCAP file into a valid one holding every complete message.
 
     Reads records one by one and stops at the first record that does not fit in the file (a
     write cut short by SIGKILL or a full disk). A complete chunk whose CRC or decompression fails
     is skipped and counted. Schemas, channels, metadata and attachments are carried over; the
     output gets a fresh summary and statistics. Returns a small report.
+
+    The input is never written; an existing ``dst`` is refused (``FileExistsError``) unless
+    ``overwrite``, and a ``dst`` that is the input (same path, link) always is (``ValueError``).
     """
     src, dst = Path(src), Path(dst)
-    if src.resolve() == dst.resolve():
-        raise ValueError("recover() writes a new file: src and dst must differ")
+    if src.resolve() == dst.resolve() or (dst.exists() and os.path.samefile(src, dst)):
+        raise ValueError(f"recover writes a new file: the output {dst} is the input {src}")
     report = {
         "messages": 0,
         "channels": 0,
@@ -225,6 +255,7 @@ def recover(src: str | os.PathLike, dst: str | os.PathLike, compression: str = "
     with open(src, "rb") as f:
         if f.read(len(MAGIC)) != MAGIC:
             raise McapError(f"{src} is not an MCAP file (bad magic)")
+        out_file = create_file(dst, overwrite)  # before any work: an existing output is refused at once
         pos = len(MAGIC)
         header: Header | None = None
         schemas: dict[int, Schema] = {}
@@ -232,12 +263,10 @@ def recover(src: str | os.PathLike, dst: str | os.PathLike, compression: str = "
         out_schema: dict[int, int] = {}
         out_channel: dict[int, int] = {}
         writer: Writer | None = None
-        out_file = None
 
         def ensure_writer() -> Writer:
-            nonlocal writer, out_file
+            nonlocal writer
             if writer is None:
-                out_file = open(dst, "wb")
                 writer = Writer(out_file, compression=_COMPRESSION[compression])
                 writer.start(
                     profile=header.profile if header else PROFILE,
@@ -327,9 +356,8 @@ def recover(src: str | os.PathLike, dst: str | os.PathLike, compression: str = "
                 channel_for(old_id)
             w.finish()
         finally:
-            if out_file is not None:
-                out_file.close()
+            out_file.close()
     return report
 
 
-__all__ = ["McapLog", "PROFILE", "recover"]
+__all__ = ["McapLog", "PROFILE", "create_file", "log_file_name", "recover"]

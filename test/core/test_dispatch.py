@@ -13,28 +13,39 @@ def make(**kw):
     return d
 
 
+def prove(d, now, *workers):
+    """Workers pass probation: each is sent one scenario and answers it."""
+    for w in workers:
+        d.heartbeat(w, now)
+    sent, _ = d.tick(now)
+    assert sorted(a.worker for a in sent) == sorted(workers)  # probation: one each
+    for a in sent:
+        assert d.result(a.scenario_id, a.worker)
+
+
 def test_scenarios_are_shared_without_overlap_and_respect_in_flight_limit():
     d = make()
     d.heartbeat("a", 0)
     d.heartbeat("b", 0)
     sent, gone = d.tick(0)
     assert not gone
-    assert len(sent) == 4  # two workers x max_in_flight 2
+    assert sorted(a.worker for a in sent) == ["a", "b"]  # new workers: one scenario each until they answer
+    for a in sent:
+        assert d.result(a.scenario_id, a.worker)
+    sent, _ = d.tick(0.1)
+    assert len(sent) == 4  # proven: two workers x max_in_flight 2
     assert sorted(a.worker for a in sent) == ["a", "a", "b", "b"]
     assert len({a.scenario_id for a in sent}) == 4
     for a in sent:
         assert d.result(a.scenario_id, a.worker)
-    sent2, _ = d.tick(0.5)
-    assert {a.scenario_id for a in sent2} == {4, 5}
-    for a in sent2:
-        d.result(a.scenario_id, a.worker)
     assert d.done() and sorted(d.settled) == list(range(6))
 
 
 def test_dead_worker_scenarios_go_to_the_live_one():
     d = make()
-    d.heartbeat("a", 0)
-    d.heartbeat("b", 0)
+    for i in range(6, 8):
+        d.add(i, f"scenario-{i}")
+    prove(d, 0, "a", "b")
     first, _ = d.tick(0)
     of_b = {a.scenario_id for a in first if a.worker == "b"}
     d.heartbeat("a", 2.5)  # b falls silent
@@ -63,7 +74,7 @@ def test_give_up_after_max_attempts_and_report_each_once():
         t += 1.0
     assert d.done()
     assert sorted(g.scenario_id for g in gone_all) == list(range(6))
-    assert all(g.attempts == 2 for g in gone_all)
+    assert all(g.late == 2 and g.attempts == 2 for g in gone_all)
     assert all(w == "" for w in d.settled.values())
 
 
@@ -85,3 +96,122 @@ def test_duplicate_and_late_results_are_not_used_twice():
     assert d.duplicates == 1
     with pytest.raises(ValueError):
         d.add(sid, "again")
+
+
+def test_a_host_losing_its_link_strands_no_scenario_as_a_timeout():
+    """The issue's case: two workers of one host fall silent together (their last heartbeats a
+    little apart) while a worker elsewhere is alive but busy. Each stranded scenario must end on
+    the live worker, never on the neighbour about to be declared dead, and never as a timeout,
+    even with max_attempts=1 (a worker's death is not the scenario's fault)."""
+    d = Dispatcher(result_timeout=30, worker_timeout=3, worker_wait=1, max_attempts=1, max_in_flight=2)
+    for i in range(12):
+        d.add(i, i)
+    prove(d, 0, "a", "b1", "b2")
+    sent, _ = d.tick(0.1)
+    held = {w: {x.scenario_id for x in sent if x.worker == w} for w in ("a", "b1", "b2")}
+    assert all(len(ids) == 2 for ids in held.values())
+    t, gone_all, moved_to = 0.1, [], {}
+    while t < 20:
+        d.heartbeat("a", t)
+        if t <= 1.0:
+            d.heartbeat("b1", t)  # b1 last heard at 1.0, b2 at 1.4: then the cable is pulled
+        if t <= 1.4:
+            d.heartbeat("b2", t)
+        sent, gone = d.tick(t)
+        gone_all += gone
+        for x in sent:
+            moved_to[x.scenario_id] = x.worker
+            if x.worker == "a":
+                d.result(x.scenario_id, "a")
+        if t == 5.0:  # a answers what it held all along; until then it was full
+            for sid in held["a"]:
+                d.result(sid, "a")
+        t = round(t + 0.1, 1)
+    assert gone_all == []
+    assert all(moved_to[sid] == "a" for sid in held["b1"] | held["b2"])
+    assert d.done()
+    lost = {e.worker: e for e in d.drain_events() if e.kind == "lost"}
+    assert set(lost) == {"b1", "b2"} and all(e.requeued == 2 for e in lost.values())
+    assert 3.0 < lost["b1"].silent_s <= 3.1
+
+
+def test_a_scenario_sent_before_the_worker_could_hear_us_is_sent_again_and_the_worker_still_gets_work():
+    """A new worker's first scenario may be lost in discovery (its reader not yet matched). It holds
+    one until worker_timeout (probation), then gets its full share; its answer to a later
+    scenario shows the first never arrived (a worker executes in the order sent), which then goes
+    back to the queue, uncounted, even with max_attempts=1."""
+    d = Dispatcher(result_timeout=30, worker_timeout=2, worker_wait=1, max_attempts=1, max_in_flight=3)
+    for i in range(10):
+        d.add(i, i)
+    prove(d, 0, "old")
+    d.heartbeat("new", 0.5)
+    sent, _ = d.tick(0.5)
+    first = [x.scenario_id for x in sent if x.worker == "new"]
+    assert len(first) == 1  # probation: one at a time
+    for x in sent:
+        if x.worker == "old":
+            d.result(x.scenario_id, "old")
+    for t in (1.5, 2.6):
+        d.heartbeat("old", t)
+        d.heartbeat("new", t)
+    sent, gone = d.tick(2.6)  # 2.1 s without an answer: probation over, the first stays with it
+    later = [x.scenario_id for x in sent if x.worker == "new"]
+    assert not gone and len(later) == 2 and first[0] not in {x.scenario_id for x in sent}
+    d.result(later[0], "new", executed=False)  # a rejection, answered on arrival: proves nothing
+    sent, _ = d.tick(2.7)
+    assert first[0] not in {x.scenario_id for x in sent}
+    d.result(later[1], "new")  # executed: the first, sent before it, never reached "new"
+    sent, gone = d.tick(2.8)
+    assert not gone and (first[0], 2) in {(x.scenario_id, x.attempt) for x in sent}  # sent again
+    assert [e.kind for e in d.drain_events()] == ["joined", "joined", "unanswered", "skipped"]
+
+
+def test_a_slow_first_run_is_not_executed_twice():
+    d = Dispatcher(result_timeout=30, worker_timeout=2, worker_wait=1, max_attempts=1, max_in_flight=3)
+    for i in range(6):
+        d.add(i, i)
+    sends = []
+    t = 0.0
+    while not d.done() and t < 20:
+        d.heartbeat("slow", t)
+        sent, gone = d.tick(t)
+        assert not gone
+        sends += [x.scenario_id for x in sent]
+        if t == 6.0:  # the first run (a JIT compile) took 6 s; then every one is answered at once
+            for sid in list(sends):
+                d.result(sid, "slow")
+        elif t > 6.0:
+            for x in sent:
+                d.result(x.scenario_id, "slow")
+        t = round(t + 0.5, 1)
+    assert d.done() and sorted(sends) == list(range(6)) and d.duplicates == 0  # each sent once
+
+
+def test_a_worker_that_comes_back_is_reported_and_gets_work_again():
+    d = make()
+    prove(d, 0, "a", "b")
+    d.heartbeat("a", 2.5)
+    d.tick(2.5)  # b silent 2.5 s > 2: lost
+    d.heartbeat("b", 6.0)
+    d.heartbeat("a", 6.0)
+    sent, _ = d.tick(6.0)
+    assert "b" in {x.worker for x in sent}
+    kinds = [(e.kind, e.worker) for e in d.drain_events()]
+    assert ("lost", "b") in kinds and ("back", "b") in kinds
+
+
+def test_a_pause_of_the_caller_does_not_kill_its_workers_nor_offer_to_anyone():
+    """The generator was busy for 5 s (a first JIT compile) while heartbeats queued up unread:
+    on its next tick no worker is lost and nothing is offered to anyone (every worker would
+    execute it)."""
+    d = make()
+    prove(d, 0, "a", "b")
+    d.tick(0.5)
+    sent, gone = d.tick(5.5)
+    assert not gone and all(x.worker in ("a", "b") for x in sent)
+    assert not [e for e in d.drain_events() if e.kind == "lost"]
+    t = 5.5
+    while t < 8.0:  # now listening all along (a tick every 0.1 s): 2.5 s more of silence is theirs
+        t = round(t + 0.1, 1)
+        d.tick(t)
+    assert [e.worker for e in d.drain_events() if e.kind == "lost"] == ["a", "b"]

@@ -265,7 +265,7 @@ def test_surrogate_campaign_end_to_end(campaigns, name):
     assert summary["evaluations"] == evaluations and summary["mode"] == "surrogate"
     suite = re.search(r"executing (\d+) suite scenarios", (out / "logs" / "generator.log").read_text())
     assert suite and int(suite.group(1)) == summary["scenarios_published"]
-    assert f"MCAP: {summary['mcap']}" in output and Path(summary["mcap"]).parent == out
+    assert re.search(rf"^\s+MCAP\s+{re.escape(summary['mcap'])}$", output, re.M) and Path(summary["mcap"]).parent == out
 
 
 FULL_MODEL_OBJECTIVES = {"thermostat": "thermostat_rmse", "robot": "robot_time", "vehicle": "vehicle_max_oob"}

@@ -59,25 +59,6 @@ def test_every_node_lists_the_profile_parameter_in_its_help():
         assert "profile" in text and "replication" in text and "refined" in text, f"{module} --help:\n{out}"
 
 
-def test_the_launch_file_passes_its_profile_argument_to_every_node():
-    """Read statically (no ROS launch here): a ``profile`` argument, handed to the sims and the generator."""
-    import ast
-
-    tree = ast.parse((REPO / "launch" / "campaign.launch.py").read_text())
-    arguments = next(node.value for node in ast.walk(tree) if isinstance(node, ast.Assign)
-                     and any(isinstance(t, ast.Name) and t.id == "ARGUMENTS" for t in node.targets))
-    assert "profile" in [k.value for k in arguments.keys]
-    handed = {}  # node executable -> what its "profile" parameter is set to
-    for call in ast.walk(tree):
-        if isinstance(call, ast.Call) and getattr(call.func, "id", "") == "Node":
-            kw = {k.arg: k.value for k in call.keywords}
-            params = kw["parameters"].elts[0]
-            values = {k.value: ast.unparse(v) for k, v in zip(params.keys, params.values)}
-            handed[ast.unparse(kw["executable"])] = values.get("profile")
-    assert handed.pop("'recorder'") is None
-    assert set(handed.values()) == {"value['profile']"} and len(handed) == 2, handed  # the sims, the generator
-
-
 @pytest.fixture
 def in_process(monkeypatch):
     """make(build, node name, **parameters): ``build(node)`` in this process on domain 84."""

@@ -16,7 +16,7 @@ from mcap.reader import make_reader
 
 from ambiegen_ros.ros import topics
 from ambiegen_ros.ros.qos import STREAM
-from ambiegen_ros.ros.runlog import summarize
+from ambiegen_ros.ros.runlog import read_metadata, summarize
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -48,6 +48,8 @@ def test_replay_execute_reruns_every_scenario_and_reports_no_change(recorded, tm
     # same surrogate, same scenarios: every verdict and objective is reproduced
     assert report["changes"] == {"none": 10}, report["changes"]
     assert report["new_failures"] == report["fixed_failures"] == []
+    # the full models' noise is seeded from the run's seed: a replay runs with the recorded one
+    assert report["seed"] == 4 == int(read_metadata(recorded)["ambiegen_run"]["seed"])
     # the new results were recorded under the replay's run id, one per scenario
     new = summarize(new_log, report["replay_run_id"])
     assert new["results_received"] == 10 and new["unresolved"] == []
@@ -91,3 +93,24 @@ def test_replay_publish_sends_the_recorded_bytes(recorded):
             proc.kill()
         node.shutdown()
     assert received == expected
+
+
+def test_replay_never_overwrites_a_report(recorded, tmp_path):
+    """An explicit --report that exists is refused before anything starts; the default name moves aside."""
+    existing = tmp_path / "kept.json"
+    existing.write_text("an earlier report\n")
+    run = ambiegen(61, "replay", str(recorded), "--execute", "--report", str(existing), "--domain-id", "61")
+    assert run.returncode == 2 and "already exists" in run.stderr, run.stderr[-2000:]
+    assert existing.read_text() == "an earlier report\n"
+
+    default = recorded.with_suffix(".replay.json")
+    default.write_text("the first replay's report\n")
+    run = ambiegen(61, "replay", str(recorded), "--execute", "--workers", "1", "--sim-model", "surrogate",
+                   "--domain-id", "61")
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert default.read_text() == "the first replay's report\n"
+    (moved,) = recorded.parent.glob(recorded.stem + ".replay-*.json")
+    assert json.loads(moved.read_text())["settled"] == 10
+    assert json.loads(run.stdout)["report"] == str(moved)
+    moved.unlink()
+    default.unlink()

@@ -455,7 +455,11 @@ def _fake_rclpy(monkeypatch):
         "rcl_interfaces.msg": pytypes.ModuleType("rcl_interfaces.msg"),
         "rosidl_runtime_py": pytypes.ModuleType("rosidl_runtime_py"),
         "rosidl_runtime_py.utilities": pytypes.ModuleType("rosidl_runtime_py.utilities"),
+        "rclpy.serialization": pytypes.ModuleType("rclpy.serialization"),
     }
+    # the adapter subscribes raw and decodes itself (so its input guard sees sizes): the fake's "CDR"
+    mods["rclpy.serialization"].deserialize_message = lambda data, cls: cls(
+        data[4:].decode() if data.startswith(b"CDR:") else data.decode("latin-1"))
     mods["rclpy"].__dict__.update(init=init, ok=lambda context=None: state["ok"], create_node=create_node,
                                   try_shutdown=try_shutdown)
     mods["rclpy.executors"].__dict__.update(SingleThreadedExecutor=SingleThreadedExecutor,
@@ -535,6 +539,7 @@ def test_dds_names_and_qos_mapping(monkeypatch):
         assert len(padded) % 4 == 0 and padded[3] == (-n) % 4 and padded[: n][4:] == data[4:]
         assert D.unpad_cdr(padded) == data
     monkeypatch.setenv("CYCLONEDDS_URI", "file:///etc/x.xml")
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "SYSTEM_DEFAULT")  # no scope fragment (test_discovery_range.py)
     monkeypatch.delenv("AMBIEGEN_DDS_IGNORE_TYPEINFO", raising=False)
     cfg = D.domain_config()
     assert cfg.startswith("file:///etc/x.xml,") and "<IgnoreTypeInformation>1.15,1.16<" in cfg

@@ -13,6 +13,7 @@ import time
 from dataclasses import dataclass
 from typing import Any, Callable, ClassVar, Sequence
 
+from ambiegen_ros.ros.limits import DEFAULT_MAX_MESSAGE_BYTES, MAX_MESSAGE_BYTES_PARAM, InputGuard
 from ambiegen_ros.ros.qos import Qos
 
 from . import params as _params
@@ -221,6 +222,7 @@ class Node(abc.ABC):
         self._parameters: dict[str, Any] = {}
         self._descriptions: dict[str, str] = {}
         self._logger = self._make_logger()
+        self._guard_obj: InputGuard | None = None
 
     # -- identity -----------------------------------------------------------------------------
     @property
@@ -286,6 +288,29 @@ class Node(abc.ABC):
     def _parameter_source(self, name: str, default: Any, description: str) -> tuple[bool, Any]:
         """(True, value) if something overrides ``name``, else (False, None)."""
 
+    # -- received samples -----------------------------------------------------------------------
+    def input_guard(self) -> InputGuard:
+        """The node's guard for received samples (declares ``max_message_bytes`` on first use)."""
+        if self._guard_obj is None:
+            limit = self.declare_parameter(
+                MAX_MESSAGE_BYTES_PARAM, DEFAULT_MAX_MESSAGE_BYTES,
+                "largest serialised sample accepted on any subscription; larger ones are dropped and counted")
+            try:
+                self._guard_obj = InputGuard(self.logger, limit)
+            except ValueError as exc:
+                raise ParameterError(str(exc)) from None
+        return self._guard_obj
+
+    def input_stats(self) -> dict[str, int]:
+        """Samples taken by this node's subscriptions and those dropped, by reason."""
+        return self.input_guard().stats.as_dict() if self._guard_obj is not None else {
+            "taken": 0, "dropped": 0, "oversize": 0, "malformed": 0, "handler_errors": 0}
+
+    def _log_input_stats(self) -> None:
+        """One line at shutdown: how many samples arrived and how many were refused."""
+        if self._guard_obj is not None:
+            self.logger.info(self._guard_obj.stats.summary())
+
     # -- communication --------------------------------------------------------------------------
     @abc.abstractmethod
     def create_publisher(self, typename: str, topic: str, qos: Qos) -> Publisher:
@@ -294,7 +319,11 @@ class Node(abc.ABC):
     @abc.abstractmethod
     def create_subscription(self, typename: str, topic: str, callback: Callable[..., None],
                             qos: Qos, raw: bool = False) -> Subscription:
-        """raw=False: ``callback(msg)``; raw=True: ``callback(cdr_bytes, receive_time_ns)``."""
+        """raw=False: ``callback(msg)``; raw=True: ``callback(cdr_bytes, receive_time_ns)``.
+
+        Every sample passes ``input_guard()``: oversize or undecodable samples and handler
+        exceptions are dropped and counted (``input_stats()``), never raised into ``spin``.
+        """
 
     @abc.abstractmethod
     def create_timer(self, period_s: float, callback: Callable[[], None]) -> Timer:

@@ -29,6 +29,7 @@ from typing import Any, Callable, Sequence
 from ambiegen_ros.ros.qos import Qos
 
 from .base import (EndpointInfo, Node, Publisher, Subscription, Timer, TransportError)
+from .discovery import check_peers_resolve, cyclone_fragment, options_from_env
 
 try:  # import-time failure is reported by available_backends()/create_node, not here
     import cyclonedds  # noqa: F401
@@ -244,14 +245,45 @@ _signal_count = 0
 
 
 def domain_config() -> str:
-    """Cyclone config: the user's CYCLONEDDS_URI (if any) plus our compatibility fragment."""
+    """Cyclone config: the discovery scope of Jazzy's ROS_AUTOMATIC_DISCOVERY_RANGE /
+    ROS_STATIC_PEERS (first, as rmw_cyclonedds_cpp puts it, so the user's file can override it),
+    the user's CYCLONEDDS_URI (if any), then our compatibility fragment."""
     ignore = os.environ.get("AMBIEGEN_DDS_IGNORE_TYPEINFO", DEFAULT_IGNORE_TYPEINFO).strip()
     user = os.environ.get("CYCLONEDDS_URI", "").strip()
-    parts = [user] if user else []
+    options = options_from_env()
+    if options.range in ("SUBNET", "LOCALHOST"):
+        check_peers_resolve(options)
+    scope = cyclone_fragment(options)
+    parts = [p for p in (scope, user) if p]
     if ignore:
         parts.append('<CycloneDDS><Domain Id="any"><Compatibility><IgnoreTypeInformation>'
                      f"{ignore}</IgnoreTypeInformation></Compatibility></Domain></CycloneDDS>")
     return ",".join(parts)
+
+
+class SecurityUnsupported(TransportError):
+    """ROS 2 security is enforced but this backend cannot provide it."""
+
+
+def check_security_environment(logger=None) -> None:
+    """Refuse to run unsecured when SROS2 is enforced; warn when it is only requested.
+
+    Measured on the pinned PyPI wheel (cyclonedds 11.0.1): it is built without DDS Security --
+    its configuration rejects ``<Security>`` ("unknown element"), a participant with ``dds.sec.*``
+    properties cannot be created, and it ships no ``dds_security_*`` plugins (nor OpenSSL). So the
+    enclave files of ``ros2 security`` cannot be used here; the rclpy backend can.
+    """
+    if os.environ.get("ROS_SECURITY_ENABLE", "") != "true":  # rcl compares exactly with "true"
+        return
+    why = ("the DDS backend (PyPI cyclonedds, built without DDS Security: no authentication, "
+           "access control or encryption plugins) cannot use the enclaves of `ros2 security`")
+    if os.environ.get("ROS_SECURITY_STRATEGY", "") == "Enforce":
+        raise SecurityUnsupported(
+            f"ROS_SECURITY_ENABLE=true and ROS_SECURITY_STRATEGY=Enforce, but {why}; refusing to start "
+            "unsecured. Run on rclpy from a ROS 2 installation (AMBIEGEN_TRANSPORT=rclpy), or unset "
+            "ROS_SECURITY_ENABLE to run without security")
+    if logger is not None:
+        logger.warning(f"ROS_SECURITY_ENABLE=true (Permissive): {why}; this node runs WITHOUT security")
 
 
 def domain_id_from_env() -> int:
@@ -267,12 +299,21 @@ def domain_id_from_env() -> int:
     return did
 
 
-def _ensure_domain(domain_id: int) -> None:
+def _ensure_domain(domain_id: int, max_sample_bytes: int | None = None) -> None:
     with _domains_lock:
         if domain_id in _domains:
             return
         cfg = domain_config()
-        _domains[domain_id] = Domain(domain_id, cfg) if cfg else None
+        if max_sample_bytes:
+            # Cyclone drops larger samples before reassembling them (logged, never buffered); +4
+            # for the CDR padding, so the node's own limit (InputGuard) decides at the boundary.
+            # The first node of a process on a domain sets it (one node per process is the rule).
+            cfg = ",".join(filter(None, [cfg, '<CycloneDDS><Domain Id="any"><Internal><MaxSampleSize>'
+                                         f"{int(max_sample_bytes) + 4}B</MaxSampleSize></Internal></Domain></CycloneDDS>"]))
+        try:
+            _domains[domain_id] = Domain(domain_id, cfg) if cfg else None
+        except Exception as exc:
+            raise TransportError(f"cannot create DDS domain {domain_id} from config {cfg!r}: {exc}") from exc
 
 
 def _on_signal(signum, frame) -> None:
@@ -360,7 +401,8 @@ class DdsSubscription(Subscription):
         self._reader = reader
         self._ref = reader._ref
         self._cond = ReadCondition(reader, _any_mask())
-        self._deserialize = node._registry.deserialize
+        deserialize = node._registry.deserialize
+        self._deliver = node.input_guard().wrap(topic, callback, raw, lambda data: deserialize(data, typename))
 
     def _drain(self) -> int:
         """Take what is queued and run the callback per valid sample; returns samples taken."""
@@ -372,16 +414,13 @@ class DdsSubscription(Subscription):
         if not got:
             return 0
         now = time.time_ns()
-        cb = self._callback
+        deliver = self._deliver  # size limit, decoding and handler errors: dropped and counted there
         for data, info in got:
             if not info.valid_data:  # writer gone / disposed: no payload
                 continue
             if len(data) > 4 and data[3] & 3:
                 data = unpad_cdr(data)
-            if self.raw:
-                cb(data, now)
-            else:
-                cb(self._deserialize(data, self.typename))
+            deliver(data, now)
         return len(got)
 
     def destroy(self) -> None:
@@ -425,12 +464,13 @@ class DdsNode(Node):
             from .base import BackendUnavailable
             raise BackendUnavailable(f"DDS backend needs cyclonedds=={PINNED_VERSION}: {unavailable_reason()}")
         super().__init__(name, namespace, argv, parameter_overrides)
+        check_security_environment(self.logger)
         self._param_values = None
         types = _types_module()
         self._registry = types.get_registry()
         self._mirror = _mirror_for(self._registry, types.dds_type_name)
         self._domain_id = domain_id_from_env()
-        _ensure_domain(self._domain_id)
+        _ensure_domain(self._domain_id, self.input_guard().max_bytes)
         self._dp = DomainParticipant(self._domain_id, qos=_DdsQos(Policy.Userdata(b"enclave=/;")))
         self._ws = WaitSet(self._dp)
         self._guard = GuardCondition(self._dp)
@@ -683,6 +723,7 @@ class DdsNode(Node):
             return
         self._request_stop()
         self._closed = True
+        self._log_input_stats()
         for sub in list(self._subs):
             sub._reader = None
         self._subs.clear()

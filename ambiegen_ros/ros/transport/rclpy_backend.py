@@ -14,6 +14,7 @@ from typing import Any, Callable, Sequence
 from ambiegen_ros.ros.qos import Qos
 
 from .base import BackendUnavailable, EndpointInfo, Node, Publisher, Subscription, Timer
+from .discovery import options_from_env
 
 
 def to_rclpy_value(value: Any, ros_type: str) -> Any:
@@ -145,6 +146,9 @@ class RclpyNode(Node):
         from rclpy.parameter import Parameter
 
         if not rclpy.ok():
+            # the RMW applies ROS_AUTOMATIC_DISCOVERY_RANGE / ROS_STATIC_PEERS itself; rcl would
+            # turn a misspelt range into LOCALHOST with a warning, we refuse it as the DDS backend does
+            options_from_env()
             rclpy.init(args=self._argv)  # Jazzy: returns None; installs SIGINT/SIGTERM handlers
             cli_args = None
         else:  # context exists (second node in the process): pass this node's own ROS args
@@ -192,13 +196,14 @@ class RclpyNode(Node):
 
     def create_subscription(self, typename: str, topic: str, callback: Callable[..., None],
                             qos: Qos, raw: bool = False) -> Subscription:
-        if raw:
-            def cb(data, _cb=callback):
-                _cb(data, time.time_ns())
-        else:
-            cb = callback
-        sub = self._node.create_subscription(self._msg_class(typename), topic, cb,
-                                             to_rclpy_qos(qos), raw=raw)
+        # Always take serialised bytes, so the seam's guard sees every sample's size before
+        # decoding it (rclpy's C deserialiser, as a plain subscription would) and counts drops.
+        from rclpy.serialization import deserialize_message
+        cls = self._msg_class(typename)
+        deliver = self.input_guard().wrap(self.resolve_topic_name(topic), callback, raw,
+                                          lambda data: deserialize_message(data, cls))
+        sub = self._node.create_subscription(cls, topic, lambda data: deliver(data, time.time_ns()),
+                                             to_rclpy_qos(qos), raw=True)
         return _RclpySubscription(sub, typename, sub.topic_name, qos, raw)
 
     def create_timer(self, period_s: float, callback: Callable[[], None]) -> Timer:
@@ -234,10 +239,20 @@ class RclpyNode(Node):
 
     # -- execution -------------------------------------------------------------------------------
     def _guarded(self, fn, *args) -> None:
+        """Run the executor; a stop (SIGINT, external shutdown) ends it quietly, whatever rclpy raises.
+
+        rclpy's signal handler may shut the context down between two ``spin_once`` calls, and the
+        next one then raises ``RCLError: context is not valid``: that is a stop, not a crash.
+        """
+        import rclpy
         from rclpy.executors import ExternalShutdownException
         try:
             fn(*args)
         except (KeyboardInterrupt, ExternalShutdownException):
+            self._stopped = True
+        except Exception:
+            if rclpy.ok():
+                raise
             self._stopped = True
 
     def spin(self) -> None:
@@ -262,6 +277,7 @@ class RclpyNode(Node):
         if self._closed:
             return
         self._closed = True
+        self._log_input_stats()
         import rclpy
         try:
             self._executor.remove_node(self._node)

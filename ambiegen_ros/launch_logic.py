@@ -1,0 +1,197 @@
+"""A campaign's plan without ROS: run id, log name, node set, when it ends, its summary as a table.
+
+``launch/campaign.launch.py`` only wraps this plan in launch / launch_ros actions, and
+``ambiegen campaign`` shares its run id, log name and summary, so the logic is tested on machines
+without ROS and both ways of running a campaign name and report it alike.
+"""
+from __future__ import annotations
+
+import os
+import secrets
+import uuid
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from .ros.mcap_log import log_file_name
+
+SIM_EXECUTABLES = {"robot": "robot_sim", "vehicle": "car_sim", "thermostat": "thermostat_sim"}
+
+LAUNCH_ARGUMENTS: dict[str, tuple[str, str]] = {
+    "problem": ("robot", "thermostat | robot | vehicle"),
+    "algorithm": ("nsga2", "ga | nsga2 | random"),
+    "evaluations": ("0", "evaluation budget (0 = the paper's)"),
+    "time_budget": ("0.0", "wall-clock budget in seconds (0 = none)"),
+    "seed": ("-1", "random seed (-1 = drawn and recorded)"),
+    "mode": ("surrogate", "surrogate | in_the_loop"),
+    "workers": ("1", "number of sim nodes sharing the scenarios"),
+    "output_dir": (".", "where the recorder writes <run id>_<UTC time>.mcap"),
+    "output": ("", "MCAP file to write ('' = <output_dir>/<run id>_<UTC time>.mcap)"),
+    "overwrite": ("false", "replace an existing output file (default: the recorder refuses it and the launch ends)"),
+    "keep_workers": ("false", "keep the sim workers running after the campaign (for external stacks; Ctrl-C ends them)"),
+    "config_file": ("", "run config YAML ('' = the package's config/<problem>.yaml)"),
+    "profile": ("", "fidelity profile of every node: replication | refined ('' = the config file's, else replication)"),
+}
+
+
+def new_run_id(problem: str, algorithm: str, seed: int) -> str:
+    """``<problem>-<algorithm>-s<seed>-<6 hex>``: readable, and unique even for the same seed."""
+    return f"{problem}-{algorithm}-s{seed}-{uuid.uuid4().hex[:6]}"
+
+
+def launch_flag(name: str, text: str) -> bool:
+    value = text.strip().lower()
+    if value not in ("true", "false"):
+        raise ValueError(f"{name}: {text!r} is not a boolean (allowed: true|false)")
+    return value == "true"
+
+
+def _number(name: str, text: str, kind: type, minimum: float | None = None) -> Any:
+    try:
+        value = kind(text)
+    except ValueError:
+        raise ValueError(f"{name}: {text!r} is not {'an integer' if kind is int else 'a number'}") from None
+    if minimum is not None and value < minimum:
+        raise ValueError(f"{name}: {text} is below {minimum}")
+    return value
+
+
+@dataclass
+class NodeSpec:
+    name: str
+    executable: str
+    parameters: dict[str, Any]
+
+
+@dataclass
+class CampaignPlan:
+    run_id: str
+    problem: str
+    algorithm: str
+    seed: int
+    mode: str
+    workers: int
+    mcap: Path
+    keep_workers: bool
+    nodes: list[NodeSpec]
+
+    def node(self, name: str) -> NodeSpec:
+        return next(n for n in self.nodes if n.name == name)
+
+    def after_generator_exit(self) -> str:
+        """``shutdown``: the campaign is over, every node gets SIGINT (the recorder closes the MCAP);
+        ``stop_recorder`` with ``keep_workers``: only the recorder is stopped, the workers stay."""
+        return "stop_recorder" if self.keep_workers else "shutdown"
+
+    def after_recorder_exit(self, generator_done: bool) -> bool:
+        """Shut the launch down? Yes, unless the workers are kept after a finished campaign: a
+        recorder that ends early (e.g. refused an existing file) would leave a run with no log."""
+        return not (self.keep_workers and generator_done)
+
+
+def plan_campaign(values: dict[str, str], share_dir: str, seed: int | None = None) -> CampaignPlan:
+    """The launch file's node set from its arguments (strings, as launch gives them).
+
+    A drawn seed (``seed:=-1``) is drawn here, so the run id and the log name carry it; a bad
+    argument raises ``ValueError`` naming it.
+    """
+    value = {name: values.get(name, default) for name, (default, _) in LAUNCH_ARGUMENTS.items()}
+    problem = value["problem"]
+    if problem not in SIM_EXECUTABLES:
+        raise ValueError(f"problem: unknown {problem!r} (allowed: {'|'.join(sorted(SIM_EXECUTABLES))})")
+    workers = _number("workers", value["workers"], int, 0)
+    seed = _number("seed", value["seed"], int) if seed is None else seed
+    seed = secrets.randbelow(2**31) if seed < 0 else seed
+    run_id = new_run_id(problem, value["algorithm"], seed)
+    config = value["config_file"] or os.path.join(share_dir, "config", f"{problem}.yaml")
+    mcap = Path(value["output"] or os.path.join(value["output_dir"], log_file_name(run_id))).absolute()
+    nodes = [NodeSpec("recorder", "recorder",
+                      {"output": str(mcap), "overwrite": launch_flag("overwrite", value["overwrite"])})]
+    for k in range(workers):
+        name = f"{problem}_sim_{k}"
+        nodes.append(NodeSpec(name, SIM_EXECUTABLES[problem], {
+            "worker_id": f"{name}_{run_id[-6:]}",  # unique per run: campaigns may share a domain
+            "config_file": config, "profile": value["profile"], "min_result_subscribers": 2}))
+    nodes.append(NodeSpec("generator", "generator", {
+        "problem": problem,
+        "algorithm": value["algorithm"],
+        "evaluations": _number("evaluations", value["evaluations"], int, 0),
+        "time_budget": _number("time_budget", value["time_budget"], float, 0),
+        "seed": seed,
+        "run_id": run_id,
+        "mode": value["mode"],
+        "config_file": config,
+        "profile": value["profile"],
+        "min_subscribers": workers + 1,
+    }))
+    return CampaignPlan(run_id, problem, value["algorithm"], seed, value["mode"], workers, mcap,
+                        launch_flag("keep_workers", value["keep_workers"]), nodes)
+
+
+# --- the end of a run ------------------------------------------------------------------------------
+def log_summary(mcap: Path, run_id: str, recorder_log: str) -> dict[str, Any]:
+    """``summarize()`` of the finished log and the profile it recorded; a missing or damaged log
+    is reported under ``log_error`` (with what to do), never raised."""
+    from .nodes.execution import run_profile
+    from .ros.runlog import read_metadata, summarize
+
+    if not Path(mcap).exists():
+        return {"mcap": str(mcap), "log_error": f"no MCAP written (see {recorder_log})"}
+    try:
+        out = summarize(mcap, run_id)
+        metadata = read_metadata(mcap)
+        out["metadata"] = sorted(metadata)
+        recorded = run_profile(metadata.get("ambiegen_run", {}).get("config_json", ""))
+        if recorded:
+            out["profile"] = recorded  # what the run used, as recorded
+        return out
+    except Exception as exc:  # a damaged log is reported, not hidden
+        return {"mcap": str(mcap), "log_error": f"{type(exc).__name__}: {exc} (try: ambiegen recover {mcap})"}
+
+
+def plan_summary(plan: CampaignPlan, elapsed: float, exit_codes: dict[str, int | None]) -> dict[str, Any]:
+    """What ``ambiegen campaign`` reports, for a launched campaign."""
+    summary: dict[str, Any] = {
+        "run_id": plan.run_id, "problem": plan.problem, "algorithm": plan.algorithm, "mode": plan.mode,
+        "seed": plan.seed, "workers": plan.workers, "elapsed_s": round(elapsed, 2), "exit_codes": exit_codes,
+    }
+    if exit_codes.get("recorder") == 2:  # refused its file or a parameter: the file there is not this run's
+        summary.update(mcap=str(plan.mcap), log_error="the recorder did not start (exit status 2, see its error above)")
+    else:
+        summary.update(log_summary(plan.mcap, plan.run_id, "the recorder's output above"))
+    return summary
+
+
+def summary_table(summary: dict[str, Any]) -> str:
+    """The campaign summary for people: scenarios, results, failures by kind, timeouts, errors,
+    MCAP path, wall time (``ambiegen campaign --json`` prints the dict itself)."""
+    rows: list[tuple[str, str]] = []
+    workers = summary.get("workers")
+    run = f"{summary.get('problem')} / {summary.get('algorithm')}, seed {summary.get('seed')}"
+    run += f", {summary.get('mode', 'surrogate')} mode" + (f", {workers} worker{'s' * (workers != 1)}" if workers is not None else "")
+    rows.append(("run", run))
+    if "scenarios_published" in summary:
+        unresolved = summary.get("unresolved") or []
+        rows.append(("scenarios", f"{summary['scenarios_published']} published, {summary['results_received']} results, "
+                                  f"{len(unresolved)} unresolved" + (f" (ids {unresolved[:10]})" if unresolved else "")))
+        kinds = {k: v for k, v in summary.get("outcomes", {}).items() if k != "none"}
+        by_kind = ", ".join(f"{k} {v}" for k, v in sorted(kinds.items(), key=lambda kv: (-kv[1], kv[0])))
+        rows.append(("failures", f"{summary['failures']}" + (f"  (outcomes: {by_kind})" if by_kind else "")))
+        rows.append(("timeouts", str(summary["timeouts"])))
+        rows.append(("errors", f"{summary['errors']}, invalid scenarios {summary.get('invalid', 0)}"))
+        if "evaluations" in summary:
+            rows.append(("search", f"{summary['evaluations']} evaluations, best F1 {summary['best_f1']:.4g}, "
+                                   f"state {summary.get('final_state')}"))
+    if "log_error" in summary:
+        rows.append(("log error", summary["log_error"]))
+    rows.append(("MCAP", str(summary.get("mcap", "-"))))
+    if "suite" in summary:
+        rows.append(("suite", str(summary["suite"])))
+    rows.append(("wall time", f"{summary.get('elapsed_s', 0.0):.1f} s"))
+    codes = summary.get("exit_codes") or {}
+    if codes:
+        rows.append(("exit codes", ", ".join(f"{name} {code}" for name, code in codes.items())))
+    if summary.get("interrupted"):
+        rows.append(("interrupted", "yes (Ctrl-C)"))
+    width = max(len(label) for label, _ in rows)
+    return "\n".join([f"campaign {summary.get('run_id')}"] + [f"  {label:<{width}}  {text}" for label, text in rows])

@@ -1,0 +1,47 @@
+"""A stand-in for Nav2's bt_navigator: a typed ``navigate_to_pose`` action server (rclpy, nav2_msgs).
+
+Run under the ROS python: ``python3 fake_nav2.py GOAL_TOPIC``. Each accepted goal is printed
+(``goal x y frame``), forwarded as ``geometry_msgs/PoseStamped`` on GOAL_TOPIC (where
+``external_sim`` drives the robot, as Nav2's planner + controller would), and succeeds after one
+feedback message, so the adapter sees a real action round trip while the verdict still comes from
+odometry.
+"""
+import sys
+import time
+
+import rclpy
+from geometry_msgs.msg import PoseStamped
+from nav2_msgs.action import NavigateToPose
+from rclpy.action import ActionServer
+from rclpy.executors import ExternalShutdownException
+
+
+def main() -> int:
+    rclpy.init()
+    node = rclpy.create_node("bt_navigator")
+    forward = node.create_publisher(PoseStamped, sys.argv[1], 10)
+
+    def execute(goal_handle):
+        pose = goal_handle.request.pose
+        print(f"goal {pose.pose.position.x:.6f} {pose.pose.position.y:.6f} {pose.header.frame_id}", flush=True)
+        forward.publish(pose)
+        feedback = NavigateToPose.Feedback()
+        feedback.current_pose = pose
+        goal_handle.publish_feedback(feedback)
+        time.sleep(0.2)
+        goal_handle.succeed()
+        return NavigateToPose.Result()
+
+    ActionServer(node, NavigateToPose, "navigate_to_pose", execute)
+    print("navigate_to_pose ready", flush=True)
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    node.destroy_node()
+    rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,188 @@
+"""Discovery scope as ROS 2 Jazzy has it: ROS_AUTOMATIC_DISCOVERY_RANGE, ROS_STATIC_PEERS, ROS_DOMAIN_ID.
+
+The mapping onto Cyclone settings is checked against what rmw_cyclonedds_cpp (Jazzy) writes; then
+real node processes on hosts made of network namespaces (test/helpers/netns.py) show that the
+scope holds on the wire: LOCALHOST nodes meet each other on their host and nobody else, OFF nodes
+meet nobody, and with multicast off on the network only ROS_STATIC_PEERS connects two hosts.
+The namespace tests need root; they run for the DDS backend and, where rclpy imports, for rclpy.
+Domain ids 74..78 (this file only).
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+for p in (REPO, REPO / "test" / "helpers"):
+    if str(p) not in sys.path:
+        sys.path.insert(0, str(p))
+
+import pytest  # noqa: E402
+
+import netns  # noqa: E402
+from ambiegen_ros.ros.transport import available_backends  # noqa: E402
+from ambiegen_ros.ros.transport.base import TransportError  # noqa: E402
+from ambiegen_ros.ros.transport.discovery import (DiscoveryOptions, cyclone_fragment,  # noqa: E402
+                                                  options_from_env)
+
+# A node that says its name on /probe and reports whom it heard. Its clock starts once the node
+# exists, so slow imports on a busy machine do not eat the listening time.
+PROBE = r"""
+import sys, time
+from ambiegen_ros.ros.transport import create_node
+from ambiegen_ros.ros.qos import DEFAULT
+me, secs = sys.argv[1], float(sys.argv[2])
+node = create_node("probe_" + me, argv=[])
+heard = set()
+def on(msg):
+    if msg.data != me:
+        heard.add(msg.data)
+node.create_subscription("std_msgs/msg/String", "/probe", on, DEFAULT)
+pub = node.create_publisher("std_msgs/msg/String", "/probe", DEFAULT)
+end = time.monotonic() + secs
+while time.monotonic() < end:
+    pub.publish(node.new_message("std_msgs/msg/String", data=me))
+    node.spin_once(0.1)
+print("HEARD", ",".join(sorted(heard)), "BACKEND", node.backend_name, flush=True)
+node.shutdown()
+"""
+LISTEN_S = 6.0
+BACKENDS = [
+    "dds",
+    pytest.param("rclpy", marks=pytest.mark.skipif("rclpy" not in available_backends(),
+                                                   reason="rclpy (ROS 2 Jazzy) is not installed here")),
+]
+
+
+# --- the mapping, without a network -----------------------------------------------------------------
+def test_ranges_and_peers_are_read_as_rcl_reads_them():
+    assert options_from_env({}) == DiscoveryOptions("SUBNET", ())
+    for rng in ("SUBNET", "LOCALHOST", "OFF", "SYSTEM_DEFAULT"):
+        assert options_from_env({"ROS_AUTOMATIC_DISCOVERY_RANGE": rng}).range == rng
+    got = options_from_env({"ROS_STATIC_PEERS": "10.0.0.2; robot.lab ;;[fe80::1]:7410"})
+    assert got.static_peers == ("10.0.0.2", "robot.lab", "[fe80::1]:7410")
+    # the deprecated ROS_LOCALHOST_ONLY=1 still wins, as in Jazzy's rcl, and drops the peers
+    assert options_from_env({"ROS_LOCALHOST_ONLY": "1", "ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET",
+                             "ROS_STATIC_PEERS": "10.0.0.2"}) == DiscoveryOptions("LOCALHOST", ())
+    for bad in ("subnet", "LAN", "localhost only"):
+        with pytest.raises(TransportError, match="ROS_AUTOMATIC_DISCOVERY_RANGE"):
+            options_from_env({"ROS_AUTOMATIC_DISCOVERY_RANGE": bad})
+    with pytest.raises(TransportError, match="ROS_STATIC_PEERS"):
+        options_from_env({"ROS_STATIC_PEERS": "a\"/><Peer address=\"b"})
+
+
+def test_cyclone_fragment_matches_rmw_cyclonedds():
+    subnet = cyclone_fragment(DiscoveryOptions("SUBNET", ("10.0.0.2",)))
+    assert "AllowMulticast" not in subnet
+    assert "<ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>32</MaxAutoParticipantIndex>" in subnet
+    assert '<Peers><Peer address="10.0.0.2"/></Peers>' in subnet
+    local = cyclone_fragment(DiscoveryOptions("LOCALHOST", ("10.0.0.2",)))
+    assert "<AllowMulticast>false</AllowMulticast>" in local
+    assert '<Peers><Peer address="localhost"/><Peer address="10.0.0.2"/></Peers>' in local
+    off = cyclone_fragment(DiscoveryOptions("OFF", ("10.0.0.2",)))
+    assert "<AllowMulticast>false</AllowMulticast>" in off and "Peer" not in off
+    assert f"<ParticipantIndex>none</ParticipantIndex><Tag>ros_discovery_off_{os.getpid()}</Tag>" in off
+    assert cyclone_fragment(DiscoveryOptions("SYSTEM_DEFAULT", ("10.0.0.2",))) == ""
+
+
+def test_domain_config_puts_the_users_file_after_the_scope(monkeypatch):
+    from ambiegen_ros.ros.transport.dds_backend import domain_config
+
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    monkeypatch.setenv("CYCLONEDDS_URI", "file:///etc/my_cyclone.xml")
+    parts = domain_config().split(",")
+    assert "<AllowMulticast>false</AllowMulticast>" in parts[0]
+    assert parts[1] == "file:///etc/my_cyclone.xml"  # the user's settings override ours, as with rmw
+    monkeypatch.setenv("ROS_STATIC_PEERS", "no-such-host.invalid")
+    with pytest.raises(TransportError, match="cannot resolve peer 'no-such-host.invalid'"):
+        domain_config()  # Cyclone itself would abort the process
+
+
+@pytest.mark.parametrize("env", [{"ROS_AUTOMATIC_DISCOVERY_RANGE": "subnet"},
+                                 {"ROS_STATIC_PEERS": "no-such-host.invalid"}])
+def test_a_node_with_a_bad_scope_exits_with_one_clear_line(env):
+    proc = subprocess.run(
+        [sys.executable, "-m", "sim_nodes.thermostat_sim", "--ros-args", "-p", "model:=surrogate"],
+        cwd=REPO, env=netns.node_env(74, AMBIEGEN_TRANSPORT="dds", **env), capture_output=True, text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert list(env)[0] in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_campaign_defaults_to_localhost_and_rejects_remote_workers_without_a_wider_scope(tmp_path):
+    from ambiegen_ros.campaign import Campaign, CampaignSpec, discovery_scope
+
+    assert discovery_scope(None, {}) == "LOCALHOST"
+    assert discovery_scope("subnet", {"ROS_LOCALHOST_ONLY": "1"}) == "SUBNET"
+    assert discovery_scope(None, {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"}) == "SUBNET"  # the user's choice
+    campaign = Campaign(CampaignSpec(problem="thermostat", out=tmp_path / "c"))
+    assert campaign.env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+    proc = subprocess.run(
+        [sys.executable, "-m", "ambiegen_ros", "campaign", "--problem", "thermostat", "--workers", "0",
+         "--remote-workers", "2", "--out", str(tmp_path / "r")],
+        cwd=REPO, env=netns.node_env(74), capture_output=True, text=True, timeout=120,
+    )
+    assert proc.returncode == 2 and "--discovery-range subnet" in proc.stderr, proc.stderr
+    assert not (tmp_path / "r").exists()
+
+
+# --- on the wire, between namespaces ----------------------------------------------------------------
+@pytest.fixture
+def network():
+    reason = netns.unavailable_reason()
+    if reason:
+        pytest.skip(f"no test network: {reason}")
+    net = netns.TestNetwork(("a", "b")).create()
+    yield net
+    net.destroy()
+
+
+def _probes(net, backend: str, specs: list[tuple[str, str, int, dict]]) -> dict[str, tuple[set, str]]:
+    """Run probes (name, host, domain, env) at once; name -> (names it heard, backend it ran on)."""
+    procs = {}
+    for name, host, domain, env in specs:
+        procs[name] = net.popen(host, [sys.executable, "-c", PROBE, name, str(LISTEN_S)], cwd=REPO,
+                                env=netns.node_env(domain, AMBIEGEN_TRANSPORT=backend, **env),
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    heard = {}
+    for name, proc in procs.items():
+        out, _ = proc.communicate(timeout=180)
+        line = next((ln for ln in out.splitlines() if ln.startswith("HEARD")), None)
+        assert line is not None and proc.returncode == 0, f"probe {name} failed:\n{out[-3000:]}"
+        _, names, _, ran_on = line.split(" ")
+        heard[name] = (set(filter(None, names.split(","))), ran_on)
+    return heard
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_localhost_and_off_keep_nodes_home(network, backend):
+    local = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    off = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF"}
+    heard = _probes(network, backend, [
+        ("a_local1", "a", 74, local), ("a_local2", "a", 74, local), ("b_subnet", "b", 74, {}),
+        ("a_off1", "a", 75, off), ("a_off2", "a", 75, off),
+        ("a_default", "a", 76, {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SYSTEM_DEFAULT"}), ("b_default", "b", 76, {}),
+        ("a_other_domain", "a", 77, local),
+    ])
+    assert all(ran_on == backend for _, ran_on in heard.values())
+    assert heard["a_local1"][0] == {"a_local2"} and heard["a_local2"][0] == {"a_local1"}
+    assert heard["b_subnet"][0] == set()  # LOCALHOST on host A is not discovered from host B
+    assert heard["a_off1"][0] == set() and heard["a_off2"][0] == set()
+    assert heard["a_default"][0] == {"b_default"} and heard["b_default"][0] == {"a_default"}
+    assert heard["a_other_domain"][0] == set()  # ROS_DOMAIN_ID separates
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_static_peers_connect_hosts_without_multicast(network, backend):
+    network.set_multicast(False)
+    a, b = network.address("a"), network.address("b")
+    heard = _probes(network, backend, [
+        ("a_alone", "a", 77, {}), ("b_alone", "b", 77, {}),
+        ("a_peer", "a", 78, {"ROS_STATIC_PEERS": b}), ("b_peer", "b", 78, {"ROS_STATIC_PEERS": a}),
+    ])
+    assert heard["a_alone"][0] == set() and heard["b_alone"][0] == set()  # no multicast: no discovery
+    assert heard["a_peer"][0] == {"b_peer"} and heard["b_peer"][0] == {"a_peer"}

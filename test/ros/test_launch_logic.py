@@ -1,0 +1,166 @@
+"""The campaign launch file's logic (ambiegen_ros/launch_logic.py), tested without ROS (issue 9).
+
+launch/campaign.launch.py wraps this plan in launch actions: the node set and its parameters, the
+log name (run id + UTC time, never the same twice), when the launch ends (the generator's exit;
+``keep_workers``) and the summary it prints. The plan's node set is run here as real node
+processes over DDS (ROS_DOMAIN_ID 68) and ended by the plan's own rules, as the launch file does.
+"""
+from __future__ import annotations
+
+import ast
+import json
+import re
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+if str(HERE) not in sys.path:
+    sys.path.insert(0, str(HERE))
+
+import pytest  # noqa: E402
+from mcap.reader import make_reader  # noqa: E402
+
+from ambiegen_ros import launch_logic  # noqa: E402
+from ambiegen_ros.launch_logic import (  # noqa: E402
+    LAUNCH_ARGUMENTS,
+    SIM_EXECUTABLES,
+    plan_campaign,
+    plan_summary,
+    summary_table,
+)
+from ambiegen_ros.ros.runlog import read_metadata, summarize  # noqa: E402
+from test_nodes import REPO, nodes_factory  # noqa: E402,F401  (the fixture is used by name)
+
+LAUNCH_FILE = REPO / "launch" / "campaign.launch.py"
+# setup.py's console scripts: the executable a launch_ros Node names -> the module it runs
+MODULES = {"recorder": "ambiegen_ros.nodes.recorder", "generator": "ambiegen_ros.nodes.generator",
+           "robot_sim": "sim_nodes.robot_sim", "car_sim": "sim_nodes.car_sim", "thermostat_sim": "sim_nodes.thermostat_sim"}
+
+
+def plan(tmp_path: Path, **args: str):
+    values = {"problem": "thermostat", "algorithm": "ga", "seed": "5", "workers": "2", "output_dir": str(tmp_path)}
+    values.update(args)
+    return plan_campaign(values, share_dir="/opt/share/ambiegen_ros")
+
+
+# --- the plan -------------------------------------------------------------------------------------
+def test_plan_node_set_and_parameters(tmp_path):
+    p = plan(tmp_path)
+    assert [(n.name, n.executable) for n in p.nodes] == [
+        ("recorder", "recorder"), ("thermostat_sim_0", "thermostat_sim"), ("thermostat_sim_1", "thermostat_sim"),
+        ("generator", "generator")]
+    generator = p.node("generator").parameters
+    assert generator["run_id"] == p.run_id and generator["seed"] == 5 and generator["min_subscribers"] == 3
+    assert generator["config_file"] == "/opt/share/ambiegen_ros/config/thermostat.yaml"
+    worker_ids = [p.node(f"thermostat_sim_{k}").parameters["worker_id"] for k in range(2)]
+    assert len(set(worker_ids)) == 2 and all(w.endswith(p.run_id[-6:]) for w in worker_ids)  # unique per run
+    assert p.node("recorder").parameters["overwrite"] is False
+
+
+def test_profile_argument_reaches_the_sims_and_the_generator(tmp_path):
+    p = plan(tmp_path, profile="refined")
+    handed = {n.name: n.parameters.get("profile") for n in p.nodes}
+    assert handed == {"recorder": None, "thermostat_sim_0": "refined", "thermostat_sim_1": "refined", "generator": "refined"}
+    assert "profile" in LAUNCH_ARGUMENTS
+
+
+def test_log_name_carries_run_id_and_utc_time_and_never_repeats(tmp_path):
+    first, second = plan(tmp_path), plan(tmp_path)  # the same arguments twice
+    for p in (first, second):
+        assert re.fullmatch(r"thermostat-ga-s5-[0-9a-f]{6}", p.run_id)
+        output = Path(p.node("recorder").parameters["output"])
+        assert output == p.mcap and output.parent == tmp_path
+        assert re.fullmatch(re.escape(p.run_id) + r"_\d{8}T\d{6}Z\.mcap", output.name)
+    assert first.run_id != second.run_id and first.mcap != second.mcap
+
+
+def test_drawn_seed_is_drawn_once_and_named(tmp_path):
+    p = plan(tmp_path, seed="-1")
+    assert p.seed >= 0 and p.node("generator").parameters["seed"] == p.seed and f"-s{p.seed}-" in p.run_id
+
+
+def test_explicit_output_and_overwrite_reach_the_recorder(tmp_path):
+    p = plan(tmp_path, output=str(tmp_path / "mine.mcap"), overwrite="true", workers="0")
+    assert p.node("recorder").parameters == {"output": str(tmp_path / "mine.mcap"), "overwrite": True}
+    assert [n.name for n in p.nodes] == ["recorder", "generator"] and p.node("generator").parameters["min_subscribers"] == 1
+
+
+@pytest.mark.parametrize("name, value", [("problem", "plane"), ("workers", "two"), ("workers", "-1"),
+                                         ("overwrite", "yes"), ("keep_workers", "maybe"), ("evaluations", "-5"),
+                                         ("time_budget", "soon"), ("seed", "1.5")])
+def test_bad_arguments_name_themselves(tmp_path, name, value):
+    with pytest.raises(ValueError, match=f"^{name}: "):
+        plan(tmp_path, **{name: value})
+
+
+def test_the_launch_ends_with_the_generator_unless_workers_are_kept(tmp_path):
+    ends = plan(tmp_path)
+    assert ends.after_generator_exit() == "shutdown"
+    assert ends.after_recorder_exit(generator_done=True) and ends.after_recorder_exit(generator_done=False)
+    kept = plan(tmp_path, keep_workers="true")
+    assert kept.after_generator_exit() == "stop_recorder"
+    assert not kept.after_recorder_exit(generator_done=True)
+    assert kept.after_recorder_exit(generator_done=False)  # a recorder lost mid-run ends the launch anyway
+
+
+def test_a_refused_recorder_is_reported_not_summarised_from_someone_elses_file(tmp_path):
+    p = plan(tmp_path, output=str(tmp_path / "old.mcap"))
+    (tmp_path / "old.mcap").write_bytes(b"an earlier log")
+    summary = plan_summary(p, 3.0, {"recorder": 2})
+    assert "scenarios_published" not in summary and "did not start" in summary["log_error"]
+    table = summary_table(summary)
+    assert "log error" in table and str(tmp_path / "old.mcap") in table and "recorder 2" in table
+
+
+# --- the launch file uses the plan ------------------------------------------------------------------
+def test_launch_file_takes_its_logic_from_the_plan():
+    tree = ast.parse(LAUNCH_FILE.read_text())
+    imported = [a.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+                and node.module == "ambiegen_ros.launch_logic" for a in node.names]
+    assert {"LAUNCH_ARGUMENTS", "plan_campaign", "plan_summary", "summary_table"} <= set(imported)
+    assert all(hasattr(launch_logic, name) for name in imported)
+    for needed in ("keep_workers", "overwrite", "output"):
+        assert needed in LAUNCH_ARGUMENTS
+
+
+def test_launch_file_declares_every_argument_with_ros_launch():
+    # (the repo's launch/ folder is a namespace package named `launch`: ask for the real modules)
+    pytest.importorskip("launch_ros.actions", reason="ROS 2 launch_ros is not installed here (source /opt/ros/jazzy)")
+    sources = pytest.importorskip("launch.launch_description_sources", reason="ROS 2 launch is not installed here")
+    get_launch_description_from_python_launch_file = sources.get_launch_description_from_python_launch_file
+
+    description = get_launch_description_from_python_launch_file(str(LAUNCH_FILE))
+    assert {a.name for a in description.get_launch_arguments()} == set(LAUNCH_ARGUMENTS)
+
+
+# --- the plan's node set, run as real processes ---------------------------------------------------------
+def test_plan_node_set_runs_a_campaign_and_keep_workers_leaves_them_running(nodes_factory, tmp_path):
+    """The launch file's sequence with ``keep_workers:=true``: generator exits -> SIGINT to the
+    recorder only (it finalises the MCAP) -> summary from the log; the sim node still runs."""
+    p = plan_campaign({"problem": "thermostat", "algorithm": "ga", "seed": "3", "workers": "1", "evaluations": "60",
+                       "output_dir": str(tmp_path), "keep_workers": "true"}, share_dir=str(REPO))
+    assert set(SIM_EXECUTABLES.values()) <= set(MODULES)
+    nodes = nodes_factory(68)
+    started = time.monotonic()
+    for spec in p.nodes:
+        nodes.start(spec.name, MODULES[spec.executable], **spec.parameters)
+    exit_codes = {"generator": nodes.wait("generator", 240)}
+    assert exit_codes["generator"] == 0, nodes.log("generator")[-3000:]
+    assert p.after_generator_exit() == "stop_recorder"
+    exit_codes["recorder"] = nodes.stop("recorder", timeout=30)
+    assert not p.after_recorder_exit(generator_done=True)
+    time.sleep(1.0)
+    assert nodes.procs["thermostat_sim_0"].poll() is None, nodes.log("thermostat_sim_0")[-2000:]  # kept
+
+    summary = plan_summary(p, time.monotonic() - started, exit_codes)
+    assert summary == {**summary, **summarize(p.mcap, p.run_id)} and "log_error" not in summary
+    assert summary["scenarios_published"] > 0 and summary["unresolved"] == [] and summary["evaluations"] == 60
+    assert read_metadata(p.mcap)["ambiegen_run"]["run_id"] == p.run_id
+    with open(p.mcap, "rb") as fh:
+        assert make_reader(fh).get_summary() is not None  # finalised by SIGINT
+    table = summary_table(summary)
+    assert f"{summary['scenarios_published']} published, {summary['results_received']} results, 0 unresolved" in table
+    assert str(p.mcap) in table and "generator 0, recorder 0" in table
+    assert nodes.stop("thermostat_sim_0", timeout=30) == 0  # Ctrl-C ends the kept workers
+    json.dumps(summary)  # what `ambiegen campaign --json` would print
