@@ -13,8 +13,10 @@ from __future__ import annotations
 import itertools
 import os
 import shutil
+import shlex
 import signal
 import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import Sequence
@@ -175,31 +177,57 @@ def node_env(domain: int, **extra: str) -> dict[str, str]:
     return env
 
 
-def start_worker(net: TestNetwork, host: str, domain: int, worker_id: str, log_dir: Path,
-                 problem: str = "thermostat", **extra_env: str) -> subprocess.Popen:
-    """A surrogate sim worker on ``host`` (the issue's ``thermostat_sim -p model:=surrogate``)."""
-    import sys
+def rclpy_unavailable_reason() -> str | None:
+    """Why node processes cannot run on rclpy here (None when they can): the real-ROS suite's
+    condition, a Jazzy install whose ``import rclpy`` works (test/real_ros/jazzy_env.py)."""
+    return _jazzy_env().probe().get("skip")
 
+
+def _jazzy_env():
+    real_ros = str(REPO / "test" / "real_ros")
+    if real_ros not in sys.path:
+        sys.path.insert(0, real_ros)
+    import jazzy_env
+
+    return jazzy_env
+
+
+def node_process(args: Sequence[str], domain: int, backend: str = "dds", install: Path | None = None,
+                 **extra_env: str) -> tuple[list[str], dict[str, str]]:
+    """Command and environment of ``python ARGS`` as a node process on ``backend``: the venv's
+    python on the DDS backend; on rclpy the ROS python under the sourced Jazzy install (and the
+    colcon workspace ``install``, which brings ambiegen_msgs), as the real-ROS suite runs them.
+    The caller runs it in REPO, so this working tree's modules come first."""
+    if backend != "rclpy":
+        return [sys.executable, *args], node_env(domain, AMBIEGEN_TRANSPORT=backend, **extra_env)
+    jazzy = _jazzy_env()
+    command = " ".join(shlex.quote(a) for a in (jazzy.probe()["executable"], *args))
+    return jazzy.ros_command(command, install), jazzy.ros_env(domain, **extra_env)
+
+
+def start_worker(net: TestNetwork, host: str, domain: int, worker_id: str, log_dir: Path,
+                 problem: str = "thermostat", backend: str = "dds", install: Path | None = None,
+                 **extra_env: str) -> subprocess.Popen:
+    """A surrogate sim worker on ``host`` (the issue's ``thermostat_sim -p model:=surrogate``)."""
     log_dir.mkdir(parents=True, exist_ok=True)
     module = {"thermostat": "sim_nodes.thermostat_sim", "robot": "sim_nodes.robot_sim"}[problem]
+    args, env = node_process(["-m", module, "--ros-args", "-r", f"__node:={worker_id}", "-p", f"worker_id:={worker_id}",
+                              "-p", "model:=surrogate", "-p", "min_result_subscribers:=2"],
+                             domain, backend, install, **extra_env)
     with open(log_dir / f"{worker_id}.log", "wb") as log:
-        return net.popen(host, [sys.executable, "-m", module, "--ros-args", "-r", f"__node:={worker_id}",
-                                "-p", f"worker_id:={worker_id}", "-p", "model:=surrogate",
-                                "-p", "min_result_subscribers:=2"],
-                         cwd=REPO, env=node_env(domain, **extra_env), stdout=log, stderr=subprocess.STDOUT)
+        return net.popen(host, args, cwd=REPO, env=env, stdout=log, stderr=subprocess.STDOUT)
 
 
 def start_campaign(net: TestNetwork, host: str, domain: int, out: Path, evaluations: int, remote_workers: int,
-                   seed: int = 1, extra_args: Sequence[str] = (), **extra_env: str) -> subprocess.Popen:
+                   seed: int = 1, extra_args: Sequence[str] = (), backend: str = "dds", install: Path | None = None,
+                   **extra_env: str) -> subprocess.Popen:
     """``ambiegen campaign`` (generator + recorder, no local worker) in the loop on ``host``."""
-    import sys
-
-    args = [sys.executable, "-m", "ambiegen_ros", "campaign", "--problem", "thermostat", "--algorithm", "ga",
-            "--mode", "in_the_loop", "--evaluations", str(evaluations), "--seed", str(seed),
-            "--workers", "0", "--remote-workers", str(remote_workers), "--discovery-range", "subnet",
-            "--domain-id", str(domain), "--out", str(out), "--json", *extra_args]
-    return net.popen(host, args, cwd=REPO, env=node_env(domain, **extra_env),
-                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    args, env = node_process(
+        ["-m", "ambiegen_ros", "campaign", "--problem", "thermostat", "--algorithm", "ga",
+         "--mode", "in_the_loop", "--evaluations", str(evaluations), "--seed", str(seed),
+         "--workers", "0", "--remote-workers", str(remote_workers), "--discovery-range", "subnet",
+         "--domain-id", str(domain), "--out", str(out), "--json", *extra_args], domain, backend, install, **extra_env)
+    return net.popen(host, args, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
 def read_dispatch(mcap: Path, run_id: str) -> dict:
@@ -231,6 +259,8 @@ def fault_timings(dispatch: dict, worker: str, fault_at: float, horizon: float =
         results = dispatch["results"].get(sid, [])
         if not mine or (results and (results[0][1] == worker or results[0][0] <= fault_at)):
             continue
+        if results and results[0][1] in {s[1] for s in sends if s[0] < mine[0][0]}:
+            continue  # answered by a worker that had it before this one (e.g. a late answer from a cut host)
         elsewhere = [s for s in sends if s[0] > mine[0][0] and s[1] != worker]
         moved.append((elsewhere[0] if elsewhere else None, results[0] if results else None))
     resent = [m[0][0] for m in moved if m[0] is not None]
@@ -260,18 +290,20 @@ def wait_for_line(path: Path, text: str, proc: subprocess.Popen, timeout: float)
 
 def campaign_across_hosts(net: TestNetwork, out: Path, domain: int, evaluations: int, workers: dict[str, str],
                           faults: Sequence[tuple[float, str, str]] = (), backend: str = "dds",
-                          timeout: float = 240, wait_for: int | None = None) -> dict:
+                          timeout: float = 240, wait_for: int | None = None, install: Path | None = None) -> dict:
     """Generator + recorder on host ``a``, ``workers`` (id -> host) elsewhere, ``faults`` applied
     at their offsets (s) after the generator starts: (offset, "down" | "up" | "kill", host or
     worker id). Returns the summary, what the log says of each scenario, fault wall times, the
     generator's log and each worker's process. The generator waits for ``wait_for`` workers
-    (default: all) before it starts."""
+    (default: all) before it starts. On rclpy every process needs the workspace ``install``
+    (node_process)."""
     import json
 
-    env = {"AMBIEGEN_TRANSPORT": backend}
-    procs = {w: start_worker(net, host, domain, w, out / "workers", **env) for w, host in workers.items()}
+    procs = {w: start_worker(net, host, domain, w, out / "workers", backend=backend, install=install)
+             for w, host in workers.items()}
     campaign = start_campaign(net, "a", domain, out / "run", evaluations,
-                              len(workers) if wait_for is None else wait_for, **env)
+                              len(workers) if wait_for is None else wait_for,
+                              backend=backend, install=install)
     generator_log = out / "run" / "logs" / "generator.log"
     began = wait_for_line(generator_log, "workers: starting", campaign, timeout)
     applied = []

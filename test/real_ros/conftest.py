@@ -16,7 +16,7 @@ HERE = Path(__file__).resolve().parent
 if str(HERE) not in sys.path:
     sys.path.insert(0, str(HERE))
 
-from jazzy_env import Graph, colcon_build, copy_working_tree, probe  # noqa: E402
+from jazzy_env import Graph, probe, working_tree_install  # noqa: E402
 
 
 def pytest_collection_modifyitems(config, items):
@@ -55,9 +55,4 @@ def graph(tmp_path):
 @pytest.fixture(scope="session")
 def workspace(jazzy, tmp_path_factory) -> Path:
     """The working tree (uncommitted changes included) built with colcon; returns its install dir."""
-    root = tmp_path_factory.mktemp("ws")
-    src = copy_working_tree(root / "src" / "ambiegen")
-    install, run, took = colcon_build(src, root)
-    if run.returncode != 0:
-        pytest.fail(f"colcon build of the working tree failed ({took:.0f} s):\n{run.stdout[-3000:]}\n{run.stderr[-3000:]}")
-    return install
+    return working_tree_install(tmp_path_factory.mktemp("ws"))

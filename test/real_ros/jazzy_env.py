@@ -57,7 +57,7 @@ from ament_index_python.packages import get_packages_with_prefixes
 pkgs = get_packages_with_prefixes()
 print(json.dumps({{"rclpy": rclpy.__file__, "python": list(sys.version_info[:2]), "executable": sys.executable,
                   "distro": __import__("os").environ.get("ROS_DISTRO", ""),
-                  "packages": sorted(p for p in pkgs if p.startswith(("rmw_", "nav2_msgs", "rosbag2_storage_mcap", "ros2bag")))}}))
+                  "packages": sorted(p for p in pkgs if p.startswith(("rmw_", "nav2_msgs", "rosbag2_storage_mcap", "ros2bag", "sros2")))}}))
 """
 
 
@@ -241,3 +241,13 @@ def copy_working_tree(dest: Path) -> Path:
             (dest / rel).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(src, dest / rel)
     return dest
+
+
+def working_tree_install(root: Path) -> Path:
+    """The working tree copied to ``root`` and built there with colcon; its install dir (the test
+    fails, showing colcon's output, when the build does)."""
+    src = copy_working_tree(root / "src" / "ambiegen")
+    install, run, took = colcon_build(src, root)
+    if run.returncode != 0:
+        pytest.fail(f"colcon build of the working tree failed ({took:.0f} s):\n{run.stdout[-3000:]}\n{run.stderr[-3000:]}")
+    return install

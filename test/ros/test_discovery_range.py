@@ -4,8 +4,10 @@ The mapping onto Cyclone settings is checked against what rmw_cyclonedds_cpp (Ja
 real node processes on hosts made of network namespaces (test/helpers/netns.py) show that the
 scope holds on the wire: LOCALHOST nodes meet each other on their host and nobody else, OFF nodes
 meet nobody, and with multicast off on the network only ROS_STATIC_PEERS connects two hosts.
-The namespace tests need root; they run for the DDS backend and, where rclpy imports, for rclpy.
-Domain ids 74..78 (this file only).
+The namespace tests need root; they run for the DDS backend and, where a ROS 2 Jazzy install
+with rclpy is found (as for test/real_ros), for rclpy: Jazzy's own rmw must honour the same
+variables the same way, also in a graph that mixes rclpy and DDS-backend nodes.
+Domain ids 74..78 and 96..98 (this file only; the namespaces keep them off the machine's network).
 """
 from __future__ import annotations
 
@@ -23,7 +25,6 @@ for p in (REPO, REPO / "test" / "helpers"):
 import pytest  # noqa: E402
 
 import netns  # noqa: E402
-from ambiegen_ros.ros.transport import available_backends  # noqa: E402
 from ambiegen_ros.ros.transport.base import TransportError  # noqa: E402
 from ambiegen_ros.ros.transport.discovery import (DiscoveryOptions, cyclone_fragment,  # noqa: E402
                                                   options_from_env)
@@ -52,8 +53,8 @@ node.shutdown()
 LISTEN_S = 6.0
 BACKENDS = [
     "dds",
-    pytest.param("rclpy", marks=pytest.mark.skipif("rclpy" not in available_backends(),
-                                                   reason="rclpy (ROS 2 Jazzy) is not installed here")),
+    pytest.param("rclpy", marks=pytest.mark.skipif(bool(netns.rclpy_unavailable_reason()),
+                                                   reason=str(netns.rclpy_unavailable_reason()))),
 ]
 
 
@@ -141,13 +142,13 @@ def network():
     net.destroy()
 
 
-def _probes(net, backend: str, specs: list[tuple[str, str, int, dict]]) -> dict[str, tuple[set, str]]:
-    """Run probes (name, host, domain, env) at once; name -> (names it heard, backend it ran on)."""
+def _probes(net, backend: str, specs: list[tuple]) -> dict[str, tuple[set, str]]:
+    """Run probes (name, host, domain, env[, backend]) at once; name -> (names it heard, backend it ran on)."""
     procs = {}
-    for name, host, domain, env in specs:
-        procs[name] = net.popen(host, [sys.executable, "-c", PROBE, name, str(LISTEN_S)], cwd=REPO,
-                                env=netns.node_env(domain, AMBIEGEN_TRANSPORT=backend, **env),
-                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    for name, host, domain, env, *own_backend in specs:
+        args, penv = netns.node_process(["-c", PROBE, name, str(LISTEN_S)], domain, *own_backend or [backend], **env)
+        procs[name] = net.popen(host, args, cwd=REPO, env=penv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                text=True)
     heard = {}
     for name, proc in procs.items():
         out, _ = proc.communicate(timeout=180)
@@ -186,3 +187,24 @@ def test_static_peers_connect_hosts_without_multicast(network, backend):
     ])
     assert heard["a_alone"][0] == set() and heard["b_alone"][0] == set()  # no multicast: no discovery
     assert heard["a_peer"][0] == {"b_peer"} and heard["b_peer"][0] == {"a_peer"}
+
+
+@pytest.mark.skipif(bool(netns.rclpy_unavailable_reason()), reason=str(netns.rclpy_unavailable_reason()))
+def test_rclpy_and_dds_nodes_meet_only_as_the_scope_allows(network):
+    """A mixed graph, as users run it: rclpy (Jazzy's rmw_cyclonedds_cpp) and DDS-backend nodes
+    with multicast off. Static peers connect them across hosts; LOCALHOST nodes of both kinds
+    meet on their host; without peers nobody crosses."""
+    network.set_multicast(False)
+    a, b = network.address("a"), network.address("b")
+    local = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    heard = _probes(network, "dds", [
+        ("a_rclpy_peer", "a", 96, {"ROS_STATIC_PEERS": b}, "rclpy"), ("b_dds_peer", "b", 96, {"ROS_STATIC_PEERS": a}),
+        ("a_rclpy_local", "a", 97, local, "rclpy"), ("a_dds_local", "a", 97, local),
+        ("a_rclpy_alone", "a", 98, {}, "rclpy"), ("b_dds_alone", "b", 98, {}),
+    ])
+    assert {name: ran_on for name, (_, ran_on) in heard.items()} == {
+        "a_rclpy_peer": "rclpy", "b_dds_peer": "dds", "a_rclpy_local": "rclpy", "a_dds_local": "dds",
+        "a_rclpy_alone": "rclpy", "b_dds_alone": "dds"}
+    assert heard["a_rclpy_peer"][0] == {"b_dds_peer"} and heard["b_dds_peer"][0] == {"a_rclpy_peer"}
+    assert heard["a_rclpy_local"][0] == {"a_dds_local"} and heard["a_dds_local"][0] == {"a_rclpy_local"}
+    assert heard["a_rclpy_alone"][0] == set() and heard["b_dds_alone"][0] == set()

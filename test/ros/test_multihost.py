@@ -9,7 +9,9 @@ none a SIM_TIMEOUT; C's stranded scenarios and the killed worker's go to live wo
 workers get work again once back; every scenario no fault touched is sent and answered once.
 Detection and reassignment times are printed (figures: bench/multihost.py).
 
-Needs root (skips naming the reason elsewhere). DDS backend always, rclpy where it imports.
+Needs root (skips naming the reason elsewhere). DDS backend always; rclpy where a ROS 2 Jazzy
+install with rclpy is found (as for test/real_ros): then the workers and the campaign run on the
+ROS python under the sourced install and the working tree built with colcon (for ambiegen_msgs).
 Domain ids 72..73 (this file only).
 """
 from __future__ import annotations
@@ -19,14 +21,14 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
-for p in (REPO, REPO / "test" / "helpers"):
+for p in (REPO, REPO / "test" / "helpers", REPO / "test" / "real_ros"):
     if str(p) not in sys.path:
         sys.path.insert(0, str(p))
 
 import pytest  # noqa: E402
 
+import jazzy_env  # noqa: E402
 import netns  # noqa: E402
-from ambiegen_ros.ros.transport import available_backends  # noqa: E402
 from ambiegen_ros.sims.outcome import FAILURE_KINDS  # noqa: E402
 
 EVALUATIONS = 5000
@@ -36,8 +38,8 @@ WORKER_TIMEOUT = 3.0  # the generator's default
 LOG_LINE = re.compile(r"\[(?:WARN|INFO)\] \[(\d+\.\d+)\] \[generator\]: worker (\S+) (lost|is back)")
 BACKENDS = [
     pytest.param("dds", 72),
-    pytest.param("rclpy", 73, marks=pytest.mark.skipif("rclpy" not in available_backends(),
-                                                       reason="rclpy (ROS 2 Jazzy) is not installed here")),
+    pytest.param("rclpy", 73, marks=pytest.mark.skipif(bool(netns.rclpy_unavailable_reason()),
+                                                       reason=str(netns.rclpy_unavailable_reason()))),
 ]
 
 
@@ -51,15 +53,23 @@ def network():
     net.destroy()
 
 
+@pytest.fixture(scope="module")
+def rclpy_install(tmp_path_factory) -> Path:
+    """The working tree built with colcon: ambiegen_msgs for the rclpy processes."""
+    return jazzy_env.working_tree_install(tmp_path_factory.mktemp("ws"))
+
+
 def _worker_events(log: str) -> list[tuple[float, str, str]]:
     return [(float(t), worker, kind) for t, worker, kind in LOG_LINE.findall(log)]
 
 
 @pytest.mark.parametrize("backend,domain", BACKENDS)
-def test_campaign_across_hosts_survives_a_cut_link_and_a_killed_worker(network, tmp_path, backend, domain):
+def test_campaign_across_hosts_survives_a_cut_link_and_a_killed_worker(network, tmp_path, request, backend, domain):
+    install = request.getfixturevalue("rclpy_install") if backend == "rclpy" else None
     run = netns.campaign_across_hosts(
         network, tmp_path, domain, EVALUATIONS, WORKERS,
         faults=[(CUT_AT, "down", "c"), (CUT_AT + CUT_FOR, "up", "c"), (KILL_AT, "kill", "b2")], backend=backend,
+        install=install, timeout=420,  # rclpy workers start and answer slower on a busy machine
     )
     summary = run["summary"]
     brief = {k: v for k, v in summary.items() if k not in ("outcomes", "metadata")}

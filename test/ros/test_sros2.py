@@ -4,15 +4,11 @@
   to start when security is enforced (ROS_SECURITY_ENABLE=true, ROS_SECURITY_STRATEGY=Enforce) and
   warns that it runs unsecured when it is only requested (Permissive). If a future wheel gains
   DDS Security, ``test_pypi_cyclonedds_has_no_dds_security`` fails and says so.
-* rclpy backend: where a ROS 2 Jazzy with ``ros2 security`` is installed (/opt/ros/jazzy or
-  $AMBIEGEN_ROS_SETUP), a keystore and enclaves are created with ``ros2 security`` and a worker
-  and a generator complete a run under ROS_SECURITY_ENABLE=true / Enforce; a node whose enclave
-  does not exist must fail to start.
+* rclpy backend: test/real_ros/test_sros2_rclpy.py (runs where a ROS 2 Jazzy with sros2 is installed).
 """
 from __future__ import annotations
 
 import os
-import shlex
 import subprocess
 import sys
 from pathlib import Path
@@ -26,7 +22,6 @@ import pytest  # noqa: E402
 from ambiegen_ros.ros.transport import dds_backend  # noqa: E402
 
 DDS_DOMAIN = 9
-RCLPY_DOMAIN = 6
 ENFORCE = {"ROS_SECURITY_ENABLE": "true", "ROS_SECURITY_STRATEGY": "Enforce"}
 needs_dds = pytest.mark.skipif(not dds_backend.is_available(), reason="cyclonedds is not installed")
 
@@ -89,67 +84,3 @@ def test_dds_node_warns_when_security_is_only_permissive(monkeypatch, capsys):
         create_node("enforced", argv=["x"], backend="dds")
     monkeypatch.setenv("ROS_SECURITY_ENABLE", "false")  # anything but exactly "true" is off, as in rcl
     create_node("off", argv=["x"], backend="dds").shutdown()
-
-
-# --- the rclpy backend under a real ROS 2 with sros2 ------------------------------------------------
-def _ros_setup() -> Path | None:
-    for candidate in (os.environ.get("AMBIEGEN_ROS_SETUP", ""), "/opt/ros/jazzy/setup.bash"):
-        if candidate and Path(candidate).is_file():
-            return Path(candidate)
-    return None
-
-
-def _in_ros(setup: Path, command: str, env: dict[str, str], timeout: float, cwd: Path = REPO) -> subprocess.CompletedProcess:
-    return subprocess.run(["bash", "-c", f"source {shlex.quote(str(setup))} && {command}"], cwd=cwd, env=env,
-                          capture_output=True, text=True, timeout=timeout)
-
-
-def _ros_python() -> str:
-    """The interpreter that runs the nodes under ROS ($AMBIEGEN_ROS_PYTHON, else this one)."""
-    return shlex.quote(os.environ.get("AMBIEGEN_ROS_PYTHON") or sys.executable)
-
-
-def _sros2_setup() -> Path:
-    setup = _ros_setup()
-    if setup is None:
-        pytest.skip("no ROS 2 installation (/opt/ros/jazzy/setup.bash or $AMBIEGEN_ROS_SETUP): rclpy SROS2 cannot run here")
-    probe = _in_ros(setup, f"ros2 security --help && {_ros_python()} -c 'import rclpy'", _env(RCLPY_DOMAIN), 120)
-    if probe.returncode != 0:
-        pytest.skip(f"ROS 2 at {setup} has no `ros2 security` (sros2) or its rclpy does not import: {probe.stderr[-300:]}")
-    return setup
-
-
-def test_rclpy_run_under_enforced_sros2(tmp_path):
-    setup = _sros2_setup()
-    keystore = tmp_path / "keystore"
-    env = _env(RCLPY_DOMAIN)
-    made = _in_ros(setup, f"ros2 security create_keystore {shlex.quote(str(keystore))} && "
-                          f"ros2 security create_enclave {shlex.quote(str(keystore))} /ambiegen/worker && "
-                          f"ros2 security create_enclave {shlex.quote(str(keystore))} /ambiegen/generator", env, 300)
-    assert made.returncode == 0, made.stdout + made.stderr
-    secure = _env(RCLPY_DOMAIN, AMBIEGEN_TRANSPORT="rclpy", ROS_SECURITY_KEYSTORE=str(keystore), **ENFORCE)
-    py = _ros_python()
-
-    missing = _in_ros(setup, f"timeout 60 {py} -m sim_nodes.thermostat_sim --ros-args --enclave /ambiegen/nowhere "
-                             "-p model:=surrogate", secure, 120)
-    assert missing.returncode != 0, "a node with no enclave ran under Enforce:\n" + missing.stderr[-2000:]
-
-    log = open(tmp_path / "worker.log", "wb")
-    worker = subprocess.Popen(["bash", "-c", f"source {shlex.quote(str(setup))} && exec {py} -m sim_nodes.thermostat_sim "
-                               "--ros-args --enclave /ambiegen/worker -p model:=surrogate -p worker_id:=secure_w"],
-                              cwd=REPO, env=secure, stdout=log, stderr=subprocess.STDOUT)
-    try:
-        gen = _in_ros(setup, f"timeout 300 {py} -m ambiegen_ros.nodes.generator --ros-args --enclave /ambiegen/generator "
-                             "-p problem:=thermostat -p algorithm:=random -p evaluations:=20 -p population:=10 "
-                             "-p mode:=in_the_loop -p min_workers:=1 -p subscriber_wait:=120.0 -p seed:=1", secure, 360)
-        worker_log = (tmp_path / "worker.log").read_text(errors="replace")
-        assert gen.returncode == 0, gen.stderr[-3000:] + "\nworker:\n" + worker_log[-2000:]
-        assert " done: " in gen.stderr and " 0 timeouts" in gen.stderr, gen.stderr[-2000:]
-    finally:
-        worker.terminate()
-        try:
-            worker.wait(30)
-        except subprocess.TimeoutExpired:
-            worker.kill()
-            worker.wait()
-        log.close()
