@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .launch_logic import log_summary, new_run_id, summary_table
+from .launch_logic import SIM_EXECUTABLES, log_summary, new_run_id, summary_table
 from .ros.mcap_log import log_file_name
 
 DISCOVERY_RANGE_VAR = "ROS_AUTOMATIC_DISCOVERY_RANGE"
@@ -43,7 +43,8 @@ def discovery_scope(requested: str | None, env: dict[str, str]) -> str:
     return options_from_env({**env, DISCOVERY_RANGE_VAR: scope}).range
 
 
-SIM_MODULES = {"robot": "sim_nodes.robot_sim", "vehicle": "sim_nodes.car_sim", "thermostat": "sim_nodes.thermostat_sim"}
+# the sim node of each problem, run as a module (the launch file runs the same one as an executable)
+SIM_MODULES = {problem: f"sim_nodes.{executable}" for problem, executable in SIM_EXECUTABLES.items()}
 
 
 @dataclass

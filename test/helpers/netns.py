@@ -21,6 +21,8 @@ import time
 from pathlib import Path
 from typing import Sequence
 
+from ambiegen_ros.campaign import SIM_MODULES
+
 SUBNET = "10.77.0"
 _serial = itertools.count()
 
@@ -210,7 +212,7 @@ def start_worker(net: TestNetwork, host: str, domain: int, worker_id: str, log_d
                  **extra_env: str) -> subprocess.Popen:
     """A surrogate sim worker on ``host`` (the issue's ``thermostat_sim -p model:=surrogate``)."""
     log_dir.mkdir(parents=True, exist_ok=True)
-    module = {"thermostat": "sim_nodes.thermostat_sim", "robot": "sim_nodes.robot_sim"}[problem]
+    module = SIM_MODULES[problem]
     args, env = node_process(["-m", module, "--ros-args", "-r", f"__node:={worker_id}", "-p", f"worker_id:={worker_id}",
                               "-p", "model:=surrogate", "-p", "min_result_subscribers:=2"],
                              domain, backend, install, **extra_env)

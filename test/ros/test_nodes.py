@@ -33,6 +33,7 @@ from ambiegen_ros.ros import conversions, topics  # noqa: E402
 from ambiegen_ros.ros.conversions import ScenarioMeta  # noqa: E402
 from ambiegen_ros.ros.qos import LATCHED, STREAM  # noqa: E402
 from ambiegen_ros.ros.runlog import summarize  # noqa: E402
+from ambiegen_ros.campaign import SIM_MODULES  # noqa: E402
 from ambiegen_ros.ros.types import get_registry  # noqa: E402
 from ambiegen_ros.sims.outcome import FAILURE_KINDS  # noqa: E402
 
@@ -40,7 +41,6 @@ pytestmark = pytest.mark.skipif(
     os.environ.get("AMBIEGEN_TRANSPORT", "auto") == "rclpy", reason="these tests drive the DDS backend"
 )
 
-SIM_MODULES = {"robot": "sim_nodes.robot_sim", "vehicle": "sim_nodes.car_sim", "thermostat": "sim_nodes.thermostat_sim"}
 SIM_TIMEOUT = FAILURE_KINDS["sim_timeout"]
 INVALID = FAILURE_KINDS["invalid_scenario"]
 DONE = re.compile(
