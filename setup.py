@@ -13,6 +13,7 @@ from setuptools import find_packages, setup
 PACKAGE = "ambiegen_ros"
 # the one table of dependencies and minimum versions (stdlib only, so readable before any install)
 DEPS = runpy.run_path(str(Path(__file__).resolve().parent / PACKAGE / "deps.py"))
+ENTRY = runpy.run_path(str(Path(__file__).resolve().parent / PACKAGE / "entry.py"))
 
 setup(
     name=PACKAGE,
@@ -35,17 +36,6 @@ setup(
     maintainer_email="ambiegen-ros@example.org",
     license="MIT",
     tests_require=["pytest"],
-    entry_points={
-        "console_scripts": [
-            "ambiegen = ambiegen_ros.cli:main",
-            "generator = ambiegen_ros.nodes.generator:main",
-            "recorder = ambiegen_ros.nodes.recorder:main",
-            "replay = ambiegen_ros.nodes.replay:main",
-            "robot_sim = sim_nodes.robot_sim:main",
-            "car_sim = sim_nodes.car_sim:main",
-            "thermostat_sim = sim_nodes.thermostat_sim:main",
-            "sut_adapter = sim_nodes.sut_adapter:main",
-            "external_sim = sim_nodes.external_sim:main",
-        ],
-    },
+    # every script runs through ambiegen_ros/entry.py, which turns a failed dependency import into one line
+    entry_points={"console_scripts": [f"{name} = {PACKAGE}.entry:{name}" for name in ENTRY["SCRIPTS"]]},
 )

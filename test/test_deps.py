@@ -105,6 +105,42 @@ def test_too_old_shapely_stops_at_start_up(tmp_path, entry):
     assert "ambiegen doctor" in got.stderr  # where to look next
 
 
+def old_pymoo(root: Path) -> None:
+    """A pymoo 0.5.0 first on the path, too old for ``pymoo.core.problem`` to import at all."""
+    fake_dist(root, "pymoo", "0.5.0")
+    (root / "pymoo").mkdir()
+    (root / "pymoo" / "__init__.py").write_text("__version__ = '0.5.0'\n")
+
+
+@pytest.mark.parametrize("entry", [
+    ["-m", "ambiegen_ros", "search", "--problem", "robot"],  # what the `ambiegen` script runs
+    ["-c", "import sys; from ambiegen_ros.entry import generator; sys.exit(generator())"],  # `ros2 run ... generator`
+])
+def test_library_too_old_to_import_is_one_line_not_a_traceback(tmp_path, entry):
+    """The script's module imports pymoo before its main could check it: the launcher reports it."""
+    old_pymoo(tmp_path)
+    got = run(entry, tmp_path)
+    assert got.returncode == 2, got.stderr
+    assert "error: pymoo 0.5.0 is too old: 0.6.1.6 or newer is needed" in got.stderr.splitlines()[0]
+    assert "Traceback" not in got.stderr
+
+
+def test_doctor_runs_when_the_cli_cannot_import(tmp_path):
+    old_pymoo(tmp_path)
+    got = run(["-m", "ambiegen_ros", "doctor", "--json"], tmp_path)
+    assert "Traceback" not in got.stderr, got.stderr
+    report = json.loads(got.stdout)
+    assert got.returncode != 0
+    assert any("pymoo 0.5.0 is too old" in line for line in json.dumps(report).split('"')), report
+
+
+def test_a_bug_is_not_disguised_as_a_dependency_problem():
+    """An import error that no dependency explains still shows its traceback."""
+    got = run(["-c", "import sys; from ambiegen_ros import entry; entry.SCRIPTS['ambiegen'] = 'ambiegen_ros.nope'; "
+                     "sys.exit(entry.launch('ambiegen', ['--help']))"])
+    assert got.returncode == 1 and "ModuleNotFoundError: No module named 'ambiegen_ros.nope'" in got.stderr
+
+
 # --- a broken accelerator falls back ----------------------------------------------------------------
 BROKEN_NUMBA = "raise AttributeError(\"module 'coverage' has no attribute 'types'\")\n"
 EVALUATE = """

@@ -11,9 +11,16 @@ Rules:
 * a scenario whose worker died (fell silent, crashed, lost its network link) goes back to the
   front of the queue for the next live worker; that never counts against the scenario, so while
   any worker lives the scenario is executed rather than recorded as a timeout;
-* a scenario whose result did not come within ``result_timeout`` from a worker that stayed alive
-  (a hung simulation) is re-assigned, preferring a worker that has not tried it, until it was
-  late ``max_attempts`` times; then it is given up and must be recorded as an explicit timeout;
+* a worker executes what it is sent in order, so of the scenarios a live worker holds only the
+  oldest is being executed; the others wait in its queue and are not late, however long a run
+  takes (a robot run of 9 s with 5 queued used to time out the last ones at 30 s and execute them
+  twice). ``result_timeout`` bounds one execution: it runs from when the worker became free for
+  the scenario (its send, or the worker's previous executed answer, whichever is later);
+* a scenario late by that measure (a hung simulation) is re-assigned, preferring a worker that
+  has not tried it, until it was late ``max_attempts`` times; then it is given up and must be
+  recorded as an explicit timeout. What waited behind it at that worker goes back to the queue,
+  not counted against it, and the worker is stalled: one scenario at a time, and only when no
+  other worker is free, until it answers again;
 * a worker whose last heartbeat is older than half of ``worker_timeout`` is suspect: it gets no
   new scenario while a worker with fresh heartbeats lives (even a busy one), so a scenario taken
   from a worker of a host that just lost its link is not handed to its neighbour on that same
@@ -102,6 +109,8 @@ class Dispatcher:
         self._lost: set[str] = set()  # workers declared dead (so their return is noticed)
         self._proven: set[str] = set()  # workers past probation since they (re)appeared
         self._held: dict[str, dict[int, int]] = {}  # worker -> {scenario id: send order} it holds
+        self._free_at: dict[str, float] = {}  # worker -> when it last became free (executed answer, or late)
+        self._stalled: set[str] = set()  # workers late with a scenario, until they answer again
         self._sends = 0
         self._last_tick: float | None = None
         self._heard = False  # a heartbeat was read since the last tick
@@ -148,6 +157,9 @@ class Dispatcher:
         whatever it was sent before this one and has not answered never reached it."""
         if worker in self._workers:
             self._proven.add(worker)  # even a late duplicate shows our scenarios reach it
+        if executed:
+            self._free_at[worker] = now
+            self._stalled.discard(worker)
         held = self._held.get(worker, {})
         if executed and scenario_id in held:
             skipped = [sid for sid, seq in held.items() if seq < held[scenario_id]]
@@ -194,6 +206,7 @@ class Dispatcher:
             if worker not in alive and worker not in self._lost:
                 self._lost.add(worker)
                 self._proven.discard(worker)
+                self._stalled.discard(worker)
                 self._event("lost", worker, now, silent_s=now - seen)
         requeued: dict[str, int] = {}
         given_up: list[Ticket] = []
@@ -209,8 +222,12 @@ class Dispatcher:
                 self._event("unanswered", ticket.worker, now)
                 self._proven.add(ticket.worker)
                 continue
-            elif now - ticket.sent_at > self.result_timeout:
+            elif self._overdue(ticket, now):
                 ticket.late += 1
+                behind = self._stall(ticket.worker, now) if ticket.worker else []
+                for sid in behind:  # never started: back to the queue, not counted against them
+                    self._release(self._tickets[sid])
+                    retry.append(sid)
                 if ticket.late >= self.max_attempts:
                     self._release(ticket)
                     self._tickets.pop(ticket.scenario_id)
@@ -227,10 +244,29 @@ class Dispatcher:
         self._queue = retry + self._queue  # retries first: they have waited longest
         return self._assign(alive, now), given_up
 
+    def _overdue(self, ticket: Ticket, now: float) -> bool:
+        """Late: its execution (not its wait in the worker's queue) took over ``result_timeout``."""
+        if not ticket.worker:  # offered to anyone: no queue we know of
+            return now - ticket.sent_at > self.result_timeout
+        held = self._held.get(ticket.worker, {})
+        if held and min(held, key=held.__getitem__) != ticket.scenario_id:
+            return False  # waiting behind the one its worker executes
+        started = max(ticket.sent_at, self._free_at.get(ticket.worker, ticket.sent_at))
+        return now - started > self.result_timeout
+
+    def _stall(self, worker: str, now: float) -> list[int]:
+        """``worker`` is late with its oldest scenario: stall it; the ids queued behind that one."""
+        self._stalled.add(worker)
+        self._free_at[worker] = now
+        held = self._held.get(worker, {})
+        oldest = min(held, key=held.__getitem__)
+        return [sid for sid in sorted(held, key=held.__getitem__) if sid != oldest]
+
     def _assign(self, alive: list[str], now: float) -> list[Assignment]:
         out: list[Assignment] = []
         load = {w: 0 for w in alive}
-        cap = {w: self.max_in_flight if w in self._proven else 1 for w in alive}  # probation: one at a time
+        # probation and stalled: one at a time
+        cap = {w: self.max_in_flight if w in self._proven and w not in self._stalled else 1 for w in alive}
         for ticket in self._tickets.values():
             if ticket.worker in load:
                 load[ticket.worker] += 1
@@ -244,6 +280,7 @@ class Dispatcher:
                 worker = ""
             else:
                 free = [w for w in usable if load[w] < cap[w]]
+                free = [w for w in free if w not in self._stalled] or free  # a stalled one only as the last resort
                 if not free:
                     remaining.append(scenario_id)
                     continue

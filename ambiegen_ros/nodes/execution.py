@@ -26,7 +26,7 @@ from ..ros.qos import DEFAULT, STREAM
 from ..sims.outcome import FAILURE_KINDS, Outcome
 
 DISPATCH_PARAMETERS = {
-    "result_timeout": (30.0, "seconds to wait for a scenario's result"),
+    "result_timeout": (30.0, "seconds one execution may take at its worker (waiting in its queue does not count)"),
     "worker_timeout": (3.0, "a worker is dead after this many silent seconds"),
     "worker_wait": (2.0, "with no worker known after this, offer scenarios to anyone"),
     "max_attempts": (2, "attempts per scenario before recording a timeout"),

@@ -14,6 +14,7 @@ when the install has no Fast DDS). Logs are read back with the repo's own reader
 from __future__ import annotations
 
 import json
+import os
 import re
 import shlex
 import subprocess
@@ -40,6 +41,9 @@ from ambiegen_ros.ros.runlog import iter_messages, summarize  # noqa: E402
 from ambiegen_ros.sims.full_model import full_model_executor  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
+# evaluations of each mixed-graph run (AMBIEGEN_MIXED_EVALUATIONS=2000 runs the issue's size)
+MIXED_EVALUATIONS = int(os.environ.get("AMBIEGEN_MIXED_EVALUATIONS", "30"))
+MIXED_TIMEOUT = 150 + 0.25 * MIXED_EVALUATIONS  # seconds a mixed-graph run may take
 RMW_DOMAINS = {"direction_rclpy_search": {"rmw_cyclonedds_cpp": 93, "rmw_fastrtps_cpp": 94},
                "direction_rclpy_workers": {"rmw_cyclonedds_cpp": 95, "rmw_fastrtps_cpp": 96}}
 
@@ -128,11 +132,35 @@ def test_ros2_launch_campaign_ends_by_itself_with_every_scenario_answered(launch
     workers = set(result_workers(mcap, summary["run_id"]).values())
     assert len(workers) == 2 and all(w.startswith("thermostat_sim_") for w in workers), workers
     assert summary["run_id"] in run.stdout + run.stderr  # the launch's own summary names the run
+    with open(mcap, "rb") as fh:
+        meta = {m.name: m.metadata for m in make_reader(fh).iter_metadata()}
+    assert meta["ambiegen_recorder"]["middleware"] == "rclpy over rmw_cyclonedds_cpp", meta
     # the rclpy recorder's file read back by rosbags, every message decoded
     counts = rosbags_counts(mcap)
     assert counts[topics.RESULTS] == summary["results_received"] + summary["duplicate_results"]
     assert counts[topics.scenarios("thermostat")] == sum(1 for _ in iter_messages(mcap, {topics.scenarios("thermostat")}))
     print(f"ros2 launch: {summary['scenarios_published']} scenarios in {launched['elapsed']:.0f} s (incl. launch start-up)")
+
+
+def test_ros2_launch_robot_campaign_on_fast_dds(jazzy, workspace, tmp_path):
+    """What most Jazzy users run: the launch with RMW_IMPLEMENTATION=rmw_fastrtps_cpp (Jazzy's
+    default RMW), on the robot problem, so OccupancyGrid maps and pose timelines cross Fast DDS and
+    the suite runs on the full model. Domain 100."""
+    require(jazzy, "rmw_fastrtps_cpp")
+    args = dict(problem="robot", algorithm="random", evaluations=30, workers=2, seed=4, mode="surrogate",
+                output_dir=str(tmp_path))
+    cmd = "ros2 launch ambiegen_ros campaign.launch.py " + " ".join(shlex.quote(f"{k}:={v}") for k, v in args.items())
+    run = ros_run(cmd, workspace, env=ros_env(100, "rmw_fastrtps_cpp"), timeout=300, cwd=tmp_path)
+    assert run.returncode == 0, f"{run.stdout[-4000:]}\n{run.stderr[-3000:]}"
+    (mcap,) = tmp_path.glob("*.mcap")
+    summary = answered(mcap)
+    assert summary["final_state"] == "done"
+    assert len(set(result_workers(mcap, summary["run_id"]).values())) == 2
+    counts = rosbags_counts(mcap)
+    assert counts.get(topics.timeline("robot"), 0) > 0, counts  # the full model's poses came through
+    with open(mcap, "rb") as fh:
+        meta = {m.name: m.metadata for m in make_reader(fh).iter_metadata()}
+    assert meta["ambiegen_recorder"]["middleware"] == "rclpy over rmw_fastrtps_cpp", meta
 
 
 COUNTER = """
@@ -231,10 +259,10 @@ def test_rclpy_generator_and_recorder_with_dds_backend_workers(rmw, jazzy, works
         g.venv(f"dds_worker_{k}", "sim_nodes.thermostat_sim", {"worker_id": f"dds_worker_{k}", "min_result_subscribers": 2},
                venv_env(domain))
     g.ros("generator", "ros2 run ambiegen_ros generator " + ros_args(
-        problem="thermostat", algorithm="ga", evaluations=30, population=10, offspring=10, seed=5, run_id=run_id,
+        problem="thermostat", algorithm="ga", evaluations=MIXED_EVALUATIONS, population=10, offspring=10, seed=5, run_id=run_id,
         mode="in_the_loop", min_subscribers=3, min_workers=2, subscriber_wait=60.0, result_timeout=60.0), workspace, env)
     t0 = time.monotonic()
-    assert g.wait("generator", 180) == 0, g.logs()
+    assert g.wait("generator", MIXED_TIMEOUT + 30) == 0, g.logs()
     took = time.monotonic() - t0
     for name in ("dds_worker_0", "dds_worker_1", "recorder"):
         assert g.stop(name) == 0, g.logs()
@@ -253,11 +281,11 @@ def test_ambiegen_campaign_with_rclpy_workers(rmw, jazzy, workspace, graph, tmp_
         g.ros(name, f"ros2 run ambiegen_ros thermostat_sim {ros_args(name, worker_id=name, min_result_subscribers=2)}",
               workspace, env)
     cmd = [sys.executable, "-m", "ambiegen_ros", "campaign", "--problem", "thermostat", "--algorithm", "ga",
-           "--evaluations", "30", "--population", "10", "--offspring", "10", "--mode", "in_the_loop",
+           "--evaluations", str(MIXED_EVALUATIONS), "--population", "10", "--offspring", "10", "--mode", "in_the_loop",
            "--workers", "0", "--remote-workers", "2", "--seed", "6", "--domain-id", str(domain),
-           "--discovery-range", "SUBNET", "--out", str(out), "--json", "--timeout", "150"]
+           "--discovery-range", "SUBNET", "--out", str(out), "--json", "--timeout", str(MIXED_TIMEOUT)]
     t0 = time.monotonic()
-    run = subprocess.run(cmd, cwd=REPO, env=venv_env(domain), capture_output=True, text=True, timeout=240)
+    run = subprocess.run(cmd, cwd=REPO, env=venv_env(domain), capture_output=True, text=True, timeout=MIXED_TIMEOUT + 90)
     took = time.monotonic() - t0
     assert run.returncode == 0, f"{run.stdout[-2000:]}\n{run.stderr[-2000:]}\n{g.logs()}"
     summary = json.loads(run.stdout[run.stdout.index("{"):])

@@ -348,6 +348,7 @@ def test_mcap_read_back_by_rosbags_holds_the_whole_run(campaigns):
     config = json.loads(meta["ambiegen_run"]["config_json"])
     assert config["seed"] == 1 and config["problem"] == "thermostat"
     assert "version" in meta["ambiegen_recorder"]
+    assert meta["ambiegen_recorder"]["middleware"].startswith("dds backend over Cyclone DDS 11.")
 
 
 def test_two_workers_share_without_executing_twice(campaigns):

@@ -230,6 +230,11 @@ class Node(abc.ABC):
         return self._name
 
     @property
+    def middleware(self) -> str:
+        """What carries this node's samples (recorded in logs: a result says which stack made it)."""
+        return self.backend_name
+
+    @property
     def namespace(self) -> str:
         return self._namespace
 

@@ -458,6 +458,11 @@ class DdsTimer(Timer):
 class DdsNode(Node):
     backend_name = BACKEND_NAME
 
+    @property
+    def middleware(self) -> str:
+        from importlib.metadata import version
+        return f"dds backend over Cyclone DDS {version('cyclonedds')} (PyPI, no RMW)"
+
     def __init__(self, name: str, namespace: str = "", argv: Sequence[str] | None = None,
                  parameter_overrides: dict[str, Any] | None = None):
         if IMPORT_ERROR is not None:

@@ -132,6 +132,22 @@ class _RclpyTimer(Timer):
 _live = 0  # nodes alive on the default context; the last one shuts rclpy down
 
 
+class _ContextAwareLogger:
+    """The node's rclpy logger (console and /rosout) while the rclpy context lives; the seam's
+    console logger after rclpy's SIGINT handler has shut it down, when every line a node logs while
+    finalising would also make rcl print "Failed to publish log message to rosout"."""
+
+    def __init__(self, ros_logger: Any, console: Any):
+        self._ros, self._console = ros_logger, console
+
+    def _target(self) -> Any:
+        import rclpy
+        return self._ros if rclpy.ok() else self._console
+
+    def __getattr__(self, name: str) -> Any:  # debug, info, warning, warn, error, fatal
+        return getattr(self._target(), name)
+
+
 class RclpyNode(Node):
     backend_name = BACKEND_NAME
 
@@ -159,7 +175,7 @@ class RclpyNode(Node):
                                        parameter_overrides=overrides)
         self._name = self._node.get_name()
         self._namespace = self._node.get_namespace()
-        self._logger = self._node.get_logger()
+        self._logger = _ContextAwareLogger(self._node.get_logger(), self._make_logger())
         self._executor = SingleThreadedExecutor()
         self._executor.add_node(self._node)
         self._stopped = False
@@ -232,6 +248,11 @@ class RclpyNode(Node):
                                     type_hash=str(th) if th else "", node_name=info.node_name,
                                     node_namespace=info.node_namespace))
         return out
+
+    @property
+    def middleware(self) -> str:
+        from rclpy.utilities import get_rmw_implementation_identifier
+        return f"rclpy over {get_rmw_implementation_identifier()}"
 
     def resolve_topic_name(self, topic: str) -> str:
         resolve = getattr(self._node, "resolve_topic_name", None)  # rcl's own rules when present
