@@ -53,12 +53,5 @@ def _entry(script: str) -> Callable[[], int]:
     return main
 
 
-ambiegen = _entry("ambiegen")
-generator = _entry("generator")
-recorder = _entry("recorder")
-replay = _entry("replay")
-robot_sim = _entry("robot_sim")
-car_sim = _entry("car_sim")
-thermostat_sim = _entry("thermostat_sim")
-sut_adapter = _entry("sut_adapter")
-external_sim = _entry("external_sim")
+# one module-level function per script, named as the script (what setup.py's entry points name)
+globals().update({script: _entry(script) for script in SCRIPTS})

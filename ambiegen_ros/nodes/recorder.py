@@ -49,7 +49,7 @@ class Recorder:
         compression = n.declare_parameter("compression", "zstd", "zstd | lz4 | none")
         extra = n.declare_parameter("extra_topics", "", "extra 'topic=pkg/msg/Type' entries to record, comma-separated")
         self.discover = n.declare_parameter("discover", True, "also record other topics under /ambiegen")
-        default_depth = FAST_DDS_READER_DEPTH if "rmw_fastrtps" in n.middleware else READER_DEPTH
+        default_depth = FAST_DDS_READER_DEPTH if (n.rmw or "").startswith("rmw_fastrtps") else READER_DEPTH
         self.reader_depth = n.declare_parameter(
             "reader_depth", default_depth, "samples each reader queues while the recorder is busy (min: the topic's depth)")
         self.path = Path(output or log_file_name())
@@ -89,10 +89,9 @@ class Recorder:
                 self.store_run_config(data)
 
         # the reader's queue is local (it does not affect matching): keep it deep so bursts are not lost.
-        # Timelines (hundreds of samples per full-model run, in bursts) are read best-effort: a
-        # recorder that falls behind then loses timeline samples, never the scenarios and results
-        # (on Fast DDS a reliable reader that falls behind starved the other readers: 279 of 300
-        # results; best-effort, 300 of 300)
+        # Timelines (hundreds of samples per full-model run, in bursts) are read best-effort, so a
+        # recorder that falls behind loses timeline samples, never scenarios or results (see
+        # FAST_DDS_READER_DEPTH: on Fast DDS a reliable flood starves the other readers)
         reliable = qos.reliable and topic not in TIMELINE_TOPICS
         reader_qos = Qos(reliable=reliable, transient_local=qos.transient_local, depth=max(qos.depth, self.reader_depth))
         self.node.create_subscription(typename, topic, on_bytes, reader_qos, raw=True)

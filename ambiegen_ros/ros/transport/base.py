@@ -230,6 +230,11 @@ class Node(abc.ABC):
         return self._name
 
     @property
+    def rmw(self) -> str | None:
+        """The ROS middleware implementation under this node (None: not an RMW, e.g. the DDS backend)."""
+        return None
+
+    @property
     def middleware(self) -> str:
         """What carries this node's samples (recorded in logs: a result says which stack made it)."""
         return self.backend_name

@@ -250,9 +250,13 @@ class RclpyNode(Node):
         return out
 
     @property
-    def middleware(self) -> str:
+    def rmw(self) -> str:
         from rclpy.utilities import get_rmw_implementation_identifier
-        return f"rclpy over {get_rmw_implementation_identifier()}"
+        return get_rmw_implementation_identifier()
+
+    @property
+    def middleware(self) -> str:
+        return f"rclpy over {self.rmw}"
 
     def resolve_topic_name(self, topic: str) -> str:
         resolve = getattr(self._node, "resolve_topic_name", None)  # rcl's own rules when present
