@@ -31,7 +31,7 @@ def launch(script: str, argv: list[str] | None = None) -> int:
     """Import the script's module and run its main; a failed import of a dependency is one line per problem."""
     args = sys.argv[1:] if argv is None else argv
     if script == "ambiegen" and args[:1] == ["doctor"]:
-        module = import_module("ambiegen_ros.doctor")  # needs none of the checked libraries
+        module = import_module("ambiegen_ros.cli.doctor")  # needs none of the checked libraries
         return int(module.main(args[1:]) or 0)
     try:
         module = import_module(SCRIPTS[script])

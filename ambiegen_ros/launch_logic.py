@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .ros.mcap_log import log_file_name
 
 SIM_EXECUTABLES = {"robot": "robot_sim", "vehicle": "car_sim", "thermostat": "thermostat_sim"}
 
@@ -104,6 +103,8 @@ def plan_campaign(values: dict[str, str], share_dir: str, seed: int | None = Non
     seed = secrets.randbelow(2**31) if seed < 0 else seed
     run_id = new_run_id(problem, value["algorithm"], seed)
     config = value["config_file"] or os.path.join(share_dir, "config", f"{problem}.yaml")
+    from .ros.mcap_log import log_file_name  # mcap and rosbags load when a campaign is planned
+
     mcap = Path(value["output"] or os.path.join(value["output_dir"], log_file_name(run_id))).absolute()
     nodes = [NodeSpec("recorder", "recorder",
                       {"output": str(mcap), "overwrite": launch_flag("overwrite", value["overwrite"])})]
@@ -162,6 +163,17 @@ def plan_summary(plan: CampaignPlan, elapsed: float, exit_codes: dict[str, int |
     return summary
 
 
+def search_line(summary: dict[str, Any]) -> str:
+    """How the search's evaluations became published scenarios, so 2000 evaluations next to 3
+    scenarios is not read as lost work: in surrogate mode the search runs on the surrogate and
+    only its final suite is published to the sims; in the loop the sims give every F1."""
+    evaluations, published = summary["evaluations"], summary.get("scenarios_published", 0)
+    plural = "s" * (published != 1)
+    if summary.get("mode", "surrogate") == "surrogate":
+        return f"{evaluations} evaluations -> suite of {published} scenario{plural} published"
+    return f"{evaluations} evaluations -> {published} scenario{plural} published (in the loop: the sims give every F1)"
+
+
 def summary_table(summary: dict[str, Any]) -> str:
     """The campaign summary for people: scenarios, results, failures by kind, timeouts, errors,
     MCAP path, wall time (``ambiegen campaign --json`` prints the dict itself)."""
@@ -180,7 +192,7 @@ def summary_table(summary: dict[str, Any]) -> str:
         rows.append(("timeouts", str(summary["timeouts"])))
         rows.append(("errors", f"{summary['errors']}, invalid scenarios {summary.get('invalid', 0)}"))
         if "evaluations" in summary:
-            rows.append(("search", f"{summary['evaluations']} evaluations, best F1 {summary['best_f1']:.4g}, "
+            rows.append(("search", f"{search_line(summary)}, best F1 {summary['best_f1']:.4g}, "
                                    f"state {summary.get('final_state')}"))
     if "log_error" in summary:
         rows.append(("log error", summary["log_error"]))

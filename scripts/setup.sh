@@ -1,8 +1,12 @@
 #!/usr/bin/env bash
 # Sets up a fresh Debian/Ubuntu machine for AmbieGen-ROS without ROS:
 #   - Debian packages for the offline .msg check (python3-rosidl) and iproute2 for the multi-host network-namespace tests (skipped when not root / no apt),
-#   - a virtual environment in .venv with the package (editable) and its test tools.
-# Idempotent: running it again only installs what is missing.
+#   - a virtual environment in .venv with the package (editable) and its test tools, at the versions
+#     pinned in constraints.txt (the ones the suite was last verified with; see that file).
+# AMBIEGEN_LATEST=1 ignores constraints.txt and installs the newest releases setup.py allows, to find
+# drift on purpose:  AMBIEGEN_LATEST=1 bash scripts/setup.sh && .venv/bin/python -m pytest
+# Idempotent: running it again only installs what is missing or not at its pin (an existing .venv is
+# kept; a run without AMBIEGEN_LATEST after one with it moves every package back to its pin).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -28,6 +32,24 @@ PY=${PYTHON:-python3}
 if [ ! -x .venv/bin/python ]; then
   "$PY" -m venv .venv
 fi
-.venv/bin/python -m pip install -q --disable-pip-version-check --upgrade pip >/dev/null
-.venv/bin/python -m pip install -q --disable-pip-version-check -e '.[test]'
+PIP=(.venv/bin/python -m pip install -q --disable-pip-version-check)
+LOCK=constraints.txt
+rm -f .venv/ambiegen-install  # written again only when the install below succeeds
+if [ "${AMBIEGEN_LATEST:-}" = "1" ]; then
+  echo "setup: AMBIEGEN_LATEST=1: ignoring $LOCK, installing the newest releases the package metadata allows"
+  "${PIP[@]}" --upgrade pip >/dev/null
+  "${PIP[@]}" --upgrade --upgrade-strategy eager -e '.[test]'
+  echo "latest" > .venv/ambiegen-install  # test/test_deps.py: versions need not match the pins
+else
+  venv_py=$(.venv/bin/python -c 'import sys; print("%d.%d" % sys.version_info[:2])')
+  lock_py=$(sed -n 's/^# verified-python: *//p' "$LOCK")
+  if [ "$venv_py" != "$lock_py" ]; then
+    echo "setup: warning: $LOCK was verified on Python $lock_py, .venv has Python $venv_py; installing its pins anyway" \
+         "(if pip finds no match: rm -rf .venv && PYTHON=python$lock_py bash scripts/setup.sh, or AMBIEGEN_LATEST=1)"
+  fi
+  echo "setup: installing the versions pinned in $LOCK (AMBIEGEN_LATEST=1 for the newest releases)"
+  "${PIP[@]}" -c "$LOCK" pip >/dev/null  # first, so the next step has --build-constraint
+  "${PIP[@]}" -c "$LOCK" --build-constraint "$LOCK" -e '.[test]'
+  echo "$LOCK" > .venv/ambiegen-install  # test/test_deps.py then checks every pin is what is installed
+fi
 echo "setup: ready ($(.venv/bin/python --version), ambiegen $(.venv/bin/ambiegen --version | cut -d' ' -f2))"

@@ -113,7 +113,7 @@ def old_pymoo(root: Path) -> None:
 
 
 @pytest.mark.parametrize("entry", [
-    ["-m", "ambiegen_ros", "search", "--problem", "robot"],  # what the `ambiegen` script runs
+    ["-m", "ambiegen_ros", "search", "--problem", "robot", "--out", "run"],  # what the `ambiegen` script runs
     ["-c", "import sys; from ambiegen_ros.entry import generator; sys.exit(generator())"],  # `ros2 run ... generator`
 ])
 def test_library_too_old_to_import_is_one_line_not_a_traceback(tmp_path, entry):
@@ -172,3 +172,146 @@ def test_numba_failing_with_attribute_error_falls_back_to_numpy(tmp_path):
         problem = get_problem(name)
         G, lengths = problem.sample(6, np.random.default_rng(5))
         np.testing.assert_allclose(out[name], problem.evaluate(G, lengths).f1, rtol=1e-9, atol=1e-9)
+
+
+# --- reproducible installs (issue 18): constraints.txt ----------------------------------------------
+def constraint_pins() -> dict[str, str]:
+    """constraints.txt as {canonical name: version}."""
+    from packaging.utils import canonicalize_name
+
+    pins = {}
+    for line in (REPO / "constraints.txt").read_text().splitlines():
+        line = line.split("#", 1)[0].strip()
+        if line:
+            name, sep, version = line.partition("==")
+            assert sep and version, f"constraints.txt: {line!r} is not NAME==VERSION"
+            pins[canonicalize_name(name)] = version
+    return pins
+
+
+def declared_requirements(monkeypatch) -> list[str]:
+    """What setup.py asks for with the test extra (its ranges, not the pins)."""
+    captured: dict = {}
+    monkeypatch.setattr(setuptools, "setup", lambda **kw: captured.update(kw))
+    monkeypatch.chdir(REPO)
+    runpy.run_path(str(REPO / "setup.py"), run_name="__main__")
+    assert "tests_require" not in captured  # setuptools warns about it at every install
+    return captured["install_requires"] + captured["extras_require"]["test"]
+
+
+def needed_distributions(requirements: list[str]) -> dict[str, object]:
+    """Every distribution the requirements need on this Python, transitive ones included, with the
+    requirement that brought it in (read from the installed metadata)."""
+    from importlib import metadata
+
+    from packaging.requirements import Requirement
+    from packaging.utils import canonicalize_name
+
+    needed: dict[str, object] = {}
+    seen: set[tuple[str, tuple[str, ...]]] = set()
+    todo = [(Requirement(r), "") for r in requirements]
+    while todo:
+        req, extra = todo.pop()
+        if req.marker is not None and not req.marker.evaluate({"extra": extra}):
+            continue
+        name = canonicalize_name(req.name)
+        if (name, tuple(sorted(req.extras))) in seen:
+            continue
+        seen.add((name, tuple(sorted(req.extras))))
+        needed.setdefault(name, req)
+        try:
+            dist = metadata.distribution(req.name)
+        except metadata.PackageNotFoundError:
+            continue  # the completeness test still requires its pin
+        for line in dist.requires or []:
+            sub = Requirement(line)
+            for sub_extra in sorted(req.extras) or [""]:
+                todo.append((sub, sub_extra))
+    return needed
+
+
+def test_constraints_pin_every_needed_package_inside_the_declared_ranges(monkeypatch):
+    pins = constraint_pins()
+    requirements = declared_requirements(monkeypatch)
+    assert any(r.startswith("pytest-random-order") for r in requirements)
+    needed = needed_distributions(requirements)
+    assert {"numpy", "numba", "llvmlite", "pytest", "pluggy", "pytest-random-order"} <= set(needed)
+    missing = sorted(set(needed) - set(pins))
+    assert not missing, f"constraints.txt lacks {missing} (regenerate it: see its header)"
+    for name, req in needed.items():  # a pin outside the metadata's range could never be installed
+        assert req.specifier.contains(pins[name], prereleases=True), (name, str(req), pins[name])
+    for dep in deps.DEPENDENCIES:  # deps.py's exact pins and the lock agree
+        if dep.pin:
+            assert pins[dep.name.lower()] == dep.pin, dep.name
+    assert {"pip", "setuptools"} <= set(pins)  # the installer and the build backend are pinned too
+
+
+def test_setup_sh_installed_the_pinned_versions(monkeypatch):
+    """After `bash scripts/setup.sh` (as CI runs it), what is installed is what constraints.txt pins."""
+    from importlib import metadata
+
+    marker = Path(sys.prefix) / "ambiegen-install"
+    if not marker.exists() or marker.read_text().strip() != "constraints.txt":
+        pytest.skip("not a .venv that scripts/setup.sh installed from constraints.txt")
+    pins = constraint_pins()
+    needed = needed_distributions(declared_requirements(monkeypatch))
+    drift = {name: (metadata.version(name), pins[name]) for name in sorted(set(needed) | {"pip"})
+             if metadata.version(name) != pins[name]}
+    assert not drift, f"installed vs pinned: {drift} (re-run bash scripts/setup.sh)"
+
+
+def fake_venv_setup(tmp_path: Path, python_version: str = "3.11") -> tuple[Path, dict[str, str]]:
+    """A copy of setup.sh and constraints.txt whose .venv/bin/python only logs its arguments, and a
+    PATH without apt-get: the install logic runs in a blink, with no network."""
+    root = tmp_path / "repo"
+    (root / "scripts").mkdir(parents=True)
+    (root / "scripts" / "setup.sh").write_text((REPO / "scripts" / "setup.sh").read_text())
+    (root / "constraints.txt").write_text((REPO / "constraints.txt").read_text())
+    venv_bin = root / ".venv" / "bin"
+    venv_bin.mkdir(parents=True)
+    (venv_bin / "python").write_text(
+        "#!/bin/bash\n"
+        f'echo "$*" >> "{root}/calls.log"\n'
+        f'case "$1" in -c) echo {python_version};; --version) echo "Python {python_version}.0";; esac\n')
+    (venv_bin / "ambiegen").write_text("#!/bin/bash\necho 'ambiegen 0.1.0'\n")
+    tools = tmp_path / "tools"
+    tools.mkdir()
+    for tool in ("bash", "cat", "cut", "dirname", "id", "rm", "sed"):
+        found = next(Path(d) / tool for d in ("/usr/bin", "/bin") if (Path(d) / tool).exists())
+        (tools / tool).symlink_to(found)
+    for script in (venv_bin / "python", venv_bin / "ambiegen"):
+        script.chmod(0o755)
+    return root, {"PATH": str(tools), "HOME": str(tmp_path)}
+
+
+def test_setup_sh_installs_from_the_lock_and_latest_ignores_it(tmp_path):
+    root, env = fake_venv_setup(tmp_path)
+    bash = str(Path(env["PATH"]) / "bash")
+    done = subprocess.run([bash, "scripts/setup.sh"], cwd=root, env=env, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    calls = (root / "calls.log").read_text().splitlines()
+    installs = [c for c in calls if c.startswith("-m pip install")]
+    assert installs[0].endswith("-c constraints.txt pip")  # pip first, at its pin
+    assert installs[-1].endswith("-c constraints.txt --build-constraint constraints.txt -e .[test]")
+    assert not any("--upgrade" in c for c in installs)
+    assert (root / ".venv" / "ambiegen-install").read_text().strip() == "constraints.txt"
+    assert "installing the versions pinned in constraints.txt" in done.stdout
+    assert "warning" not in done.stdout
+
+    (root / "calls.log").unlink()
+    latest = subprocess.run([bash, "scripts/setup.sh"], cwd=root, env={**env, "AMBIEGEN_LATEST": "1"},
+                            capture_output=True, text=True, timeout=60)
+    assert latest.returncode == 0, latest.stderr
+    assert "AMBIEGEN_LATEST=1: ignoring constraints.txt" in latest.stdout
+    installs = [c for c in (root / "calls.log").read_text().splitlines() if c.startswith("-m pip install")]
+    assert installs and not any("constraints.txt" in c for c in installs)
+    assert installs[-1].endswith("--upgrade --upgrade-strategy eager -e .[test]")
+    assert (root / ".venv" / "ambiegen-install").read_text().strip() == "latest"
+
+
+def test_setup_sh_says_when_the_python_is_not_the_verified_one(tmp_path):
+    root, env = fake_venv_setup(tmp_path, python_version="3.12")
+    done = subprocess.run([str(Path(env["PATH"]) / "bash"), "scripts/setup.sh"], cwd=root, env=env,
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert "verified on Python 3.11, .venv has Python 3.12" in done.stdout

@@ -54,7 +54,7 @@ def test_healthy_machine_text_and_json():
     if backend["rclpy_error"]:  # no ROS here: the reason is named
         assert backend["chosen"] == "dds" and "rclpy" in checks["backend"]["detail"]
     assert checks["domain_id"]["data"] == {"domain_id": 71}
-    assert checks["discovery_range"]["data"] == {"range": "LOCALHOST"}
+    assert checks["discovery_range"]["data"] == {"range": "LOCALHOST", "campaign_range": "LOCALHOST"}
     assert checks["static_peers"]["data"] == {"peers": ["127.0.0.1", "localhost"]}
     assert checks["rmw"]["data"] == {"RMW_IMPLEMENTATION": None}
     assert checks["numba_loads"]["status"] == "ok"
@@ -95,6 +95,21 @@ def test_bad_ros_environment_fails(clean_env):
     clean_env.setenv("ROS_STATIC_PEERS", "no-such-host.invalid")
     peers = {c.name: c for c in doctor.check_discovery()}["static_peers"]
     assert peers.status == "fail" and "no-such-host.invalid" in peers.detail
+
+
+def test_discovery_range_says_what_nodes_get_and_what_a_campaign_uses(clean_env):
+    """Unset, nodes get SUBNET but `ambiegen campaign` LOCALHOST (issue 18): the doctor says both,
+    from the very function the campaign uses."""
+    from ambiegen_ros.campaign import discovery_scope
+
+    check = {c.name: c for c in doctor.check_discovery()}["discovery_range"]
+    assert check.data == {"range": "SUBNET", "campaign_range": "LOCALHOST"}
+    assert check.detail.startswith("SUBNET (unset: SUBNET) for nodes started by hand or by ros2 launch; "
+                                   "`ambiegen campaign` uses LOCALHOST (its default;")
+    clean_env.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET")  # a campaign then follows the environment
+    check = {c.name: c for c in doctor.check_discovery()}["discovery_range"]
+    assert check.data == {"range": "SUBNET", "campaign_range": discovery_scope(None, dict(os.environ))}
+    assert check.data["campaign_range"] == "SUBNET" and "`ambiegen campaign` uses SUBNET" in check.detail
 
 
 def test_backend_forced_to_a_missing_one_fails(clean_env):

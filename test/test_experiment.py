@@ -175,16 +175,16 @@ def test_full_model_experiment_on_the_vehicle_counts_failures(tmp_path):
 
 
 def test_a_failing_run_is_reported_and_the_others_finish(tmp_path, monkeypatch):
-    import ambiegen_ros.experiment as experiment
+    from ambiegen_ros.experiment import runner
 
-    real = experiment.run_task
+    real = runner.run_task
 
     def flaky(task):
         if (task["algorithm"], task["run"]) == ("random", 0):
             raise RuntimeError("simulator crashed")
         return real(task)
 
-    monkeypatch.setattr(experiment, "run_task", flaky)
+    monkeypatch.setattr(runner, "run_task", flaky)
     spec = ExperimentSpec(problem="thermostat", algorithms=("ga", "random"), runs=1, seed=2, evaluations=300)
     result = run_experiment(spec, tmp_path / "exp", jobs=1, progress=False)
     assert [(e["algorithm"], e["run"]) for e in result["errors"]] == [("random", 0)]

@@ -16,7 +16,7 @@ from pymoo.core.mutation import Mutation
 from pymoo.core.problem import Problem as PymooProblem
 from pymoo.core.sampling import Sampling
 
-from ..problems.base import Problem
+from .problem import Problem
 
 
 class CaseStudyProblem(PymooProblem):

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import __version__
-from ..problems.base import Problem
+from .problem import Problem
 from .search import SearchResult
 
 DEPENDENCIES = ("pymoo", "numpy", "scipy", "shapely", "matplotlib", "PyYAML", "mcap", "rosbags", "cyclonedds")

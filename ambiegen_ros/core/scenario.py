@@ -40,16 +40,44 @@ class Scenario:
     def parse_json(text: str) -> dict[str, Any]:
         """Parse JSON text into a dict, turning syntax errors into ``ScenarioError``."""
         try:
-            data = json.loads(text, parse_constant=_reject_constant)
+            data = json.loads(text, parse_constant=_Constant)
         except json.JSONDecodeError as exc:
             raise ScenarioError("json", f"malformed JSON at line {exc.lineno} column {exc.colno}: {exc.msg}")
+        bad = first_non_finite(data)
+        if bad is not None:  # named like every other field error (elements[2].temperature), not just "json"
+            where, value = bad
+            text_value = value.name if isinstance(value, _Constant) else repr(value)
+            raise ScenarioError(where or "json", f"{text_value} is not a finite number", "finite numbers")
         if not isinstance(data, dict):
             raise ScenarioError("json", "the top level must be an object", '{"problem": ..., "elements": [...]}')
         return data
 
 
-def _reject_constant(name: str):
-    raise ScenarioError("json", f"{name} is not a number", "finite numbers")
+class _Constant:
+    """NaN / Infinity / -Infinity as written in the JSON text, kept until its field is known."""
+
+    def __init__(self, name: str):
+        self.name = name
+
+
+def first_non_finite(value: Any, where: str = "") -> tuple[str, Any] | None:
+    """The path (``elements[2].temperature``) and value of the first NaN/infinite number, or None.
+
+    Finds JSON's NaN/Infinity constants and overflowing literals such as ``1e999`` alike.
+    """
+    if isinstance(value, _Constant) or (isinstance(value, float) and not math.isfinite(value)):
+        return where, value
+    if isinstance(value, dict):
+        for key, item in value.items():
+            found = first_non_finite(item, f"{where}.{key}" if where else str(key))
+            if found:
+                return found
+    if isinstance(value, list):
+        for index, item in enumerate(value):
+            found = first_non_finite(item, f"{where or 'json'}[{index}]")
+            if found:
+                return found
+    return None
 
 
 class GenomeCodec:

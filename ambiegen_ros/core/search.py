@@ -29,7 +29,7 @@ from pymoo.core.termination import NoTermination
 from pymoo.problems.static import StaticProblem
 from pymoo.util.nds.non_dominated_sorting import NonDominatedSorting
 
-from ..problems.base import Evaluation, Problem
+from .problem import Evaluation, Problem
 from .diversity import jaccard_distance, mean_pairwise_diversity, nearest_distance, pairwise_jaccard
 from .operators import (
     CaseStudyProblem,
@@ -39,8 +39,7 @@ from .operators import (
     ScenarioSampling,
 )
 
-ALGORITHMS = ("ga", "nsga2", "random")
-REFERENCES = ("parent", "front")
+from .names import ALGORITHMS, REFERENCES
 
 
 @dataclass

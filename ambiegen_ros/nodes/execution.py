@@ -18,7 +18,7 @@ from typing import Any
 
 from ..core.attributes import ScenarioError
 from ..core.dispatch import Dispatcher
-from ..problems.base import Problem
+from ..core.problem import Problem
 from ..ros import conversions, topics
 from ..ros.conversions import ScenarioMeta
 from ..ros.limits import MAX_JSON_DEPTH, check_name, json_depth

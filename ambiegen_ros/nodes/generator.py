@@ -38,10 +38,11 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..core.config import ConfigError, make_run
+from ..core.config import ConfigError
+from ..run_config import make_run
 from ..core.runs import run_config, suite_document
 from ..core.search import Search
-from ..problems.base import PROFILES, Evaluation
+from ..core.problem import PROFILES, Evaluation
 from ..ros import conversions, topics
 from ..ros.conversions import ScenarioMeta
 from ..ros.limits import check_name

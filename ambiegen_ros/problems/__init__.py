@@ -1,28 +1,34 @@
-"""Case studies behind one interface (``base.Problem``); register a new one in ``PROBLEMS``."""
+"""Case studies behind one interface (``core.problem.Problem``); register a new one in ``_CLASSES``.
+
+Light on purpose: naming the problems (``PROBLEM_NAMES``) imports nothing heavy, and a case
+study's module (numba kernels, shapely) loads only when that problem is built.
+"""
 from __future__ import annotations
 
-from typing import Any
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
 
-from ..core.attributes import ScenarioError
-from .base import DEFAULT_PROFILE, PROFILES, Budget, Evaluation, Problem
+from ..core.names import DEFAULT_PROFILE, PROFILES
 
-
-def _registry() -> dict[str, type[Problem]]:
-    from .robot import RobotProblem
-    from .thermostat import ThermostatProblem
-    from .vehicle import VehicleProblem
-
-    return {cls.name: cls for cls in (ThermostatProblem, RobotProblem, VehicleProblem)}
-
+if TYPE_CHECKING:
+    from ..core.problem import Problem
 
 PROBLEM_NAMES = ("thermostat", "robot", "vehicle")
 
 
+_CLASSES = {"thermostat": (".thermostat", "ThermostatProblem"), "robot": (".robot", "RobotProblem"),
+            "vehicle": (".vehicle", "VehicleProblem")}
+"""name -> (module, class): a new case study is one line here (and its name in PROBLEM_NAMES)."""
+
+
 def problem_class(name: str) -> type[Problem]:
-    registry = _registry()
-    if name not in registry:
-        raise ScenarioError("problem", f"unknown problem {name!r}", "|".join(registry))
-    return registry[name]
+    """The case study's class; only its own module is imported."""
+    if name not in PROBLEM_NAMES:
+        from ..core.attributes import ScenarioError
+
+        raise ScenarioError("problem", f"unknown problem {name!r}", "|".join(PROBLEM_NAMES))
+    module, cls = _CLASSES[name]
+    return getattr(import_module(module, __name__), cls)
 
 
 def get_problem(name: str, config: Any = None, **overrides: Any) -> Problem:
@@ -30,4 +36,14 @@ def get_problem(name: str, config: Any = None, **overrides: Any) -> Problem:
     return problem_class(name)(config, **overrides)
 
 
-__all__ = ["Budget", "DEFAULT_PROFILE", "Evaluation", "Problem", "PROBLEM_NAMES", "PROFILES", "get_problem", "problem_class"]
+def __getattr__(name: str) -> Any:
+    """``Budget``, ``Evaluation``, ``Problem``: the interface, re-exported on first use."""
+    if name in ("Budget", "Evaluation", "Problem"):
+        from ..core import problem
+
+        return getattr(problem, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+__all__ = ["Budget", "DEFAULT_PROFILE", "Evaluation", "Problem", "PROBLEM_NAMES", "PROFILES", "get_problem",
+           "problem_class"]

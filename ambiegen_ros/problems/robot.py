@@ -61,7 +61,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from ..core.attributes import Categorical, IntRange, ScenarioError
 from ..core.scenario import Scenario
-from .base import DEFAULT_PROFILE, Budget, Evaluation, Problem, check_profile
+from ..core.problem import DEFAULT_PROFILE, Budget, Evaluation, Problem, check_profile
 
 HORIZONTAL, VERTICAL = 0, 1
 DIAGONAL_RULES = ("both_free", "one_free", "always")

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..core.attributes import Categorical, ScenarioError
 from ..core.scenario import Scenario
-from ..problems.base import Problem
+from ..core.problem import Problem
 from ..sims.outcome import FAILURE_KINDS, FAILURE_NAMES, Outcome
 from . import topics
 from .limits import MAX_JSON_DEPTH, MAX_NAME_LENGTH, NAME_RULE, UnsafeName, check_name, json_depth
@@ -238,8 +238,9 @@ def scenario_from_message(problem: Problem, msg: Any) -> tuple[Scenario, dict[st
         raise ScenarioError("meta.scenario_json", f"nested {depth} levels deep", f"at most {MAX_JSON_DEPTH} levels")
     try:
         data = Scenario.parse_json(meta.scenario_json)
-    except ScenarioError as exc:
-        raise ScenarioError("meta.scenario_json", exc.message, exc.allowed)
+    except ScenarioError as exc:  # keep the field a bad number sits in (a NaN names it)
+        field = "meta.scenario_json" if exc.field == "json" else f"meta.scenario_json.{exc.field}"
+        raise ScenarioError(field, exc.message, exc.allowed)
     try:
         scenario = problem.parse(data)
     except ScenarioError as exc:

@@ -5,21 +5,27 @@ gives an ``Outcome`` with the problem's failure oracle applied. In a run, the se
 ``scenario_seed(run seed, k)``: the noise follows the run and the scenario, never the worker that
 happens to execute it, so any number of workers gives the same outcomes. Options are fields of the
 problem's simulator config (``RobotSimConfig``, ``CarSimConfig``, ``RoomSimConfig``); an unknown
-option names the allowed ones. Scenarios that break a restriction of their problem are not
-simulated unless ``run_invalid=True`` (like the surrogate executor, they come back as
-``invalid_scenario``, not failed); ``metrics["valid"]`` always says what the problem thinks.
+option names the allowed ones, and a bad value is one ``ScenarioError`` naming the option, the value
+and what is allowed (``--set cruise_speed=abc`` must not surface as a Python comparison error).
+Scenarios that break a restriction of their problem are not simulated unless ``run_invalid=True``
+(like the surrogate executor, they come back as ``invalid_scenario``, not failed);
+``metrics["valid"]`` always says what the problem thinks.
 """
 from __future__ import annotations
 
 import dataclasses
+import json
+import math
+import numbers
 import time
+import typing
 from typing import Any, Callable
 
 import numpy as np
 
 from ..core.attributes import ScenarioError
 from ..core.scenario import Scenario
-from ..problems.base import Problem
+from ..core.problem import Problem
 from . import car, robot, room
 from .outcome import Outcome
 
@@ -35,15 +41,66 @@ def sim_config(problem_name: str, options: dict[str, Any] | None = None) -> Any:
     if problem_name not in SIMULATORS:
         raise ScenarioError("problem", f"no full-model simulator for {problem_name!r}", "|".join(SIMULATORS))
     cls = SIMULATORS[problem_name][0]
-    known = {f.name for f in dataclasses.fields(cls)}
-    options = dict(options or {})
-    for key in options:
-        if key not in known:
-            raise ScenarioError(f"option.{key}", f"unknown {problem_name} simulator option", ", ".join(sorted(known)))
+    return _build(lambda checked: cls(**checked), check_options(problem_name, options))
+
+
+def check_options(problem_name: str, options: dict[str, Any] | None) -> dict[str, Any]:
+    """``options`` with each value checked against the type of its config field (ints made int).
+
+    The configs' own ``__post_init__`` then checks ranges; a value of the wrong type must not reach
+    it (``'abc' > 0`` would be a TypeError without the option's name).
+    """
+    cls = SIMULATORS[problem_name][0]
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    hints = typing.get_type_hints(cls)
+    checked = {}
+    for key, value in dict(options or {}).items():
+        if key not in fields:
+            raise ScenarioError(f"option.{key}", f"unknown {problem_name} simulator option", ", ".join(sorted(fields)))
+        checked[key] = option_value(key, value, hints[key], fields[key].default)
+    return checked
+
+
+def option_value(key: str, value: Any, hint: Any, default: Any) -> Any:
+    """One option value of a field typed ``hint``, or ``ScenarioError`` naming option, value and what is allowed."""
+    where, shown = f"option.{key}", f"default {json.dumps(default)}"
+    number = isinstance(value, numbers.Real) and not isinstance(value, bool)
+    if hint is bool:
+        if isinstance(value, bool):
+            return value
+        raise ScenarioError(where, f"expected true or false, got {value!r}", f"true|false; {shown}")
+    if hint is int:
+        if number and math.isfinite(value) and value == int(value):
+            return int(value)
+        raise ScenarioError(where, f"expected an integer, got {value!r}", f"integers; {shown}")
+    if hint is float:
+        if number and math.isfinite(value):
+            return value
+        raise ScenarioError(where, f"expected a number, got {value!r}", f"finite numbers; {shown}")
+    if hint is str or hint == (str | None):
+        if isinstance(value, str) or (value is None and hint != str):
+            return value
+        if isinstance(value, (bool, numbers.Real)):  # `--set planner=1` read as JSON: the text is meant
+            return json.dumps(value)
+        raise ScenarioError(where, f"expected text, got {value!r}", f"text; {shown}")
+    return value
+
+
+def _build(make: Callable[[dict[str, Any]], Any], checked: dict[str, Any]) -> Any:
+    """``make(checked)`` with the config's range errors naming the value that broke them."""
     try:
-        return cls(**options)
-    except TypeError as exc:  # wrong value types surface as one line, not a traceback
-        raise ScenarioError("option", str(exc))
+        return make(checked)
+    except ScenarioError as exc:
+        key = exc.field.split(".", 1)[-1]
+        if exc.field.startswith("option.") and key in checked:
+            value = checked[key]
+            if isinstance(value, str) and repr(value) in exc.message:  # "unknown planner 'magic'" names it
+                raise
+            raise ScenarioError(exc.field, f"value {value!r}: {exc.message}", exc.allowed) from None
+        given = ", ".join(f"{k}={v!r}" for k, v in checked.items())
+        raise ScenarioError(exc.field, exc.message + (f" (with {given})" if given else ""), exc.allowed) from None
+    except TypeError as exc:  # a last resort: still one line naming the options, never a traceback
+        raise ScenarioError("option", f"{exc} (options: {', '.join(map(str, checked))})") from None
 
 
 class FullModelExecutor:
@@ -54,7 +111,8 @@ class FullModelExecutor:
         if config is None:
             config = sim_config(problem.name, options)
         elif options:
-            config = dataclasses.replace(config, **options)
+            base = config
+            config = _build(lambda checked: dataclasses.replace(base, **checked), check_options(problem.name, options))
         self.config = config
         self._simulate = SIMULATORS[problem.name][1]
 
@@ -111,5 +169,5 @@ def timeline_lists(outcome: Outcome) -> dict[str, list[float]] | None:
     return {k: np.asarray(v, dtype=float).tolist() for k, v in outcome.timeline.items()}
 
 
-__all__ = ["FullModelExecutor", "SIMULATORS", "execute", "full_model_executor", "scenario_seed", "sim_config",
-           "timeline_lists"]
+__all__ = ["FullModelExecutor", "SIMULATORS", "check_options", "execute", "full_model_executor", "option_value",
+           "scenario_seed", "sim_config", "timeline_lists"]

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..core.scenario import Scenario
-from ..problems.base import Problem
+from ..core.problem import Problem
 from .outcome import Outcome
 
 

@@ -1,7 +1,8 @@
-"""Run pictures: convergence (best / mean F1 and front size over evaluations) and the best scenarios."""
+"""Run pictures: convergence (best / mean F1, and the front size for NSGA-II) and the best scenarios."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -11,6 +12,32 @@ import matplotlib.pyplot as plt  # noqa: E402
 from ..core.runs import read_run  # noqa: E402
 from ..core.scenario import Scenario  # noqa: E402
 from ..problems import get_problem  # noqa: E402
+
+
+# Only NSGA-II keeps a Pareto front (core.search: the one two-objective algorithm); GA and random
+# search have none, so their "front size" is not a quantity worth an axis (issue 18).
+FRONT_ALGORITHMS = ("nsga2",)
+
+
+def convergence_figure(problem, history: list[dict], algorithm: str, seed: Any):
+    """Best / mean F1 over evaluations, plus the feasible front's size for algorithms that have one."""
+    fig, ax = plt.subplots(figsize=(7, 4))
+    evals = [h["evaluations"] for h in history]
+    ax.plot(evals, [h["best_f1"] for h in history], label="best F1")
+    ax.plot(evals, [h["mean_f1"] for h in history], label="mean F1 (population)", alpha=0.7)
+    ax.axhline(problem.alpha, color="grey", linestyle=":", label=f"alpha = {problem.alpha:g}")
+    ax.set_xlabel("evaluations")
+    ax.set_ylabel(problem.f1_label)
+    handles, labels = ax.get_legend_handles_labels()
+    if algorithm in FRONT_ALGORITHMS:
+        ax2 = ax.twinx()
+        ax2.plot(evals, [h["front_size"] for h in history], color="tab:green", alpha=0.5, label="front size")
+        ax2.set_ylabel("non-dominated feasible scenarios", color="tab:green")
+        handles2, labels2 = ax2.get_legend_handles_labels()
+        handles, labels = handles + handles2, labels + labels2
+    ax.legend(handles, labels, loc="lower right", fontsize=8)
+    ax.set_title(f"{problem.name} / {algorithm} (seed {seed}): convergence")
+    return fig
 
 
 def plot_run(run_dir: Path, out: Path | None = None, max_scenarios: int = 6) -> list[Path]:
@@ -27,20 +54,7 @@ def plot_run(run_dir: Path, out: Path | None = None, max_scenarios: int = 6) -> 
         return prefix.with_name(f"{prefix.stem}_{name}.png")
 
     written = []
-    fig, ax = plt.subplots(figsize=(7, 4))
-    evals = [h["evaluations"] for h in history]
-    ax.plot(evals, [h["best_f1"] for h in history], label="best F1")
-    ax.plot(evals, [h["mean_f1"] for h in history], label="mean F1 (population)", alpha=0.7)
-    ax.axhline(problem.alpha, color="grey", linestyle=":", label=f"alpha = {problem.alpha:g}")
-    ax.set_xlabel("evaluations")
-    ax.set_ylabel(problem.f1_label)
-    ax2 = ax.twinx()
-    ax2.plot(evals, [h["front_size"] for h in history], color="tab:green", alpha=0.5, label="front size")
-    ax2.set_ylabel("non-dominated feasible scenarios", color="tab:green")
-    lines = ax.get_legend_handles_labels()
-    lines2 = ax2.get_legend_handles_labels()
-    ax.legend(lines[0] + lines2[0], lines[1] + lines2[1], loc="lower right", fontsize=8)
-    ax.set_title(f"{problem.name} / {suite_doc['algorithm']} (seed {suite_doc['seed']}): convergence")
+    fig = convergence_figure(problem, history, suite_doc["algorithm"], suite_doc["seed"])
     fig.tight_layout()
     fig.savefig(target("convergence"), dpi=110)
     plt.close(fig)

@@ -65,8 +65,26 @@ def test_validation_rejects_wrong_length_and_problem():
         PROBLEM.parse({"problem": "toy", "elements": []})
     with pytest.raises(ScenarioError, match="problem"):
         PROBLEM.parse({"problem": "robot", "elements": [{"kind": "a", "size": 2, "weight": 0}]})
-    with pytest.raises(ScenarioError, match="json"):
-        Scenario.parse_json('{"problem": "toy", "elements": [{"weight": NaN}]}')
+    with pytest.raises(ScenarioError, match="malformed JSON"):
+        Scenario.parse_json('{"problem": "toy", "elements": [}')
+
+
+@pytest.mark.parametrize(
+    "text, field, shown",
+    [
+        ('{"problem": "toy", "elements": [{"weight": 1}, {"weight": 2}, {"weight": NaN}]}', "elements[2].weight", "NaN"),
+        ('{"problem": "toy", "elements": [{"size": -Infinity}]}', "elements[0].size", "-Infinity"),
+        ('{"problem": "toy", "elements": [], "metadata": {"score": 1e999}}', "metadata.score", "inf"),
+        ("[1, Infinity]", "json[1]", "Infinity"),
+        ("NaN", "json", "NaN"),
+    ],
+)
+def test_non_finite_json_names_the_field(text, field, shown):
+    """A NaN is named where it is (issue 18), like every other field error, not just as 'json'."""
+    with pytest.raises(ScenarioError) as err:
+        Scenario.parse_json(text)
+    assert err.value.field == field
+    assert str(err.value) == f"{field}: {shown} is not a finite number (allowed: finite numbers)"
 
 
 # --- operators -------------------------------------------------------------------------------
@@ -239,7 +257,7 @@ def test_ask_tell_with_external_results_matches_run():
     while (X := search.ask()) is not None:
         # an "external" evaluator: decode to scenarios and evaluate them one by one
         rows = [PROBLEM.evaluate_scenarios([CODEC.from_row(x)]) for x in X]
-        from ambiegen_ros.problems.base import Evaluation
+        from ambiegen_ros.core.problem import Evaluation
 
         merged = Evaluation(
             np.array([r.f1[0] for r in rows]),

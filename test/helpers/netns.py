@@ -6,17 +6,21 @@ namespace and traffic never leaves these namespaces. Names carry the creating pi
 so concurrent runs do not meet; ``destroy`` kills what still runs inside and deletes them all.
 
 Used by test/ros/test_multihost.py, test/ros/test_discovery_range.py and bench/multihost.py.
+Tests fire faults on events (``Progress``: results seen, workers lost or back), never at a
+wall-clock offset; offsets remain for the bench's fixed schedule.
 Needs root (CAP_NET_ADMIN + CAP_SYS_ADMIN) and iproute2; ``unavailable_reason`` says why not.
 """
 from __future__ import annotations
 
 import itertools
 import os
-import shutil
+import re
 import shlex
+import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Sequence
@@ -209,12 +213,15 @@ def node_process(args: Sequence[str], domain: int, backend: str = "dds", install
 
 def start_worker(net: TestNetwork, host: str, domain: int, worker_id: str, log_dir: Path,
                  problem: str = "thermostat", backend: str = "dds", install: Path | None = None,
-                 **extra_env: str) -> subprocess.Popen:
-    """A surrogate sim worker on ``host`` (the issue's ``thermostat_sim -p model:=surrogate``)."""
+                 result_subscribers: int = 2, **extra_env: str) -> subprocess.Popen:
+    """A surrogate sim worker on ``host`` (the issue's ``thermostat_sim -p model:=surrogate``).
+
+    It announces itself (so the generator starts) only once ``result_subscribers`` readers of
+    its results are matched: generator and recorder, plus the result probe when one listens."""
     log_dir.mkdir(parents=True, exist_ok=True)
     module = SIM_MODULES[problem]
     args, env = node_process(["-m", module, "--ros-args", "-r", f"__node:={worker_id}", "-p", f"worker_id:={worker_id}",
-                              "-p", "model:=surrogate", "-p", "min_result_subscribers:=2"],
+                              "-p", "model:=surrogate", "-p", f"min_result_subscribers:={result_subscribers}"],
                              domain, backend, install, **extra_env)
     with open(log_dir / f"{worker_id}.log", "wb") as log:
         return net.popen(host, args, cwd=REPO, env=env, stdout=log, stderr=subprocess.STDOUT)
@@ -233,7 +240,9 @@ def start_campaign(net: TestNetwork, host: str, domain: int, out: Path, evaluati
 
 
 def read_dispatch(mcap: Path, run_id: str) -> dict:
-    """What the log says of each scenario: sends (log time s, worker, attempt) and results."""
+    """What the log says of each scenario: sends (s, worker, attempt) and results (log time s,
+    worker, failure kind). A send's time is its header stamp, the generator's clock when it
+    published, so it compares exactly with the generator's log lines (no delivery lag)."""
     from ambiegen_ros.ros import topics
     from ambiegen_ros.ros.runlog import iter_messages
 
@@ -242,8 +251,9 @@ def read_dispatch(mcap: Path, run_id: str) -> dict:
     results: dict[int, list[tuple[float, str, int]]] = {}
     for topic, _, stamp, msg in iter_messages(mcap, scenario_topics | {topics.RESULTS}):
         if topic in scenario_topics and msg.meta.run_id == run_id:
+            sent = msg.meta.header.stamp
             sends.setdefault(int(msg.meta.scenario_id), []).append(
-                (stamp / 1e9, msg.meta.assigned_worker, int(msg.meta.attempt)))
+                (sent.sec + sent.nanosec / 1e9, msg.meta.assigned_worker, int(msg.meta.attempt)))
         elif topic == topics.RESULTS and msg.run_id == run_id:
             results.setdefault(int(msg.scenario_id), []).append((stamp / 1e9, msg.worker, int(msg.failure_kind)))
     return {"sends": sends, "results": results}
@@ -279,7 +289,9 @@ def fault_timings(dispatch: dict, worker: str, fault_at: float, horizon: float =
 
 
 def wait_for_line(path: Path, text: str, proc: subprocess.Popen, timeout: float) -> float:
-    """Wall time when ``text`` first shows in the log at ``path`` (fails if ``proc`` ends first)."""
+    """Wall time when ``text`` first shows in the log at ``path`` (fails if ``proc`` ends first).
+
+    ``timeout`` is a safety net for a hung process, not a measure: the wait ends on the line."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if path.exists() and text in path.read_text(errors="replace"):
@@ -290,40 +302,130 @@ def wait_for_line(path: Path, text: str, proc: subprocess.Popen, timeout: float)
     raise TimeoutError(f"no '{text}' in {path} after {timeout:g} s")
 
 
+WORKER_EVENT = re.compile(r"\[(?:WARN|INFO)\] \[(\d+\.\d+)\] \[generator\]: worker (\S+) (lost|is back|joined)")
+
+
+class Progress:
+    """What a running campaign has done so far, for fault triggers: results seen by the result
+    probe (test/helpers/result_probe.py, on host a) and the generator's worker events.
+
+    "Since" means since the last fault was applied (``mark``), so a trigger asks about what
+    followed the previous fault: ``answered("c1")`` after the cable is back, ``event("b2",
+    "lost")`` after the kill."""
+
+    def __init__(self, probe: subprocess.Popen, generator_log: Path):
+        self.generator_log = generator_log
+        self.results = 0
+        self.by_worker: dict[str, int] = {}
+        self._marked: dict[str, int] = {}
+        self._since = 0.0
+        self._lock = threading.Lock()
+        self._reader = threading.Thread(target=self._read, args=(probe,), daemon=True)
+        self._reader.start()
+
+    def _read(self, probe: subprocess.Popen) -> None:
+        for line in probe.stdout:
+            parts = line.split()
+            if len(parts) == 2:
+                with self._lock:
+                    self.results += 1
+                    self.by_worker[parts[0]] = self.by_worker.get(parts[0], 0) + 1
+
+    def mark(self, at: float) -> None:
+        with self._lock:
+            self._marked = dict(self.by_worker)
+            self._since = at
+
+    def answered(self, worker: str) -> int:
+        """Results from ``worker`` seen since the last fault."""
+        with self._lock:
+            return self.by_worker.get(worker, 0) - self._marked.get(worker, 0)
+
+    def event(self, worker: str, kind: str) -> bool:
+        """Did the generator log ``worker <worker> <kind>`` (lost | is back | joined) since the last fault?"""
+        text = self.generator_log.read_text(errors="replace") if self.generator_log.exists() else ""
+        return any(w == worker and k == kind and float(t) > self._since for t, w, k in WORKER_EVENT.findall(text))
+
+
+def start_probe(net: TestNetwork, host: str, domain: int, backend: str = "dds",
+                install: Path | None = None) -> subprocess.Popen:
+    """The result probe on ``host`` (its stdout: one ``worker scenario_id`` line per result)."""
+    args, env = node_process([str(REPO / "test" / "helpers" / "result_probe.py")], domain, backend, install,
+                             ROS_AUTOMATIC_DISCOVERY_RANGE="SUBNET")
+    return net.popen(host, args, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+
+
+def _wait_for_trigger(when, progress: Progress, began: float, campaign: subprocess.Popen, deadline: float,
+                      what: str) -> None:
+    """Wait until a fault is due: ``when`` is an offset in s after the start (a bench's fixed
+    schedule) or a predicate on ``progress`` (an event). Fails if the campaign ends first."""
+    while True:
+        if callable(when):
+            if when(progress):
+                return
+        elif time.time() >= began + when:
+            return
+        if campaign.poll() is not None:
+            raise RuntimeError(f"the campaign ended before the trigger of '{what}' "
+                               f"({progress.results} results seen, by worker {progress.by_worker})")
+        if time.monotonic() > deadline:  # a safety net for a hung run, not a measure
+            raise TimeoutError(f"'{what}' never became due ({progress.results} results seen, by worker "
+                               f"{progress.by_worker})")
+        time.sleep(0.02)
+
+
 def campaign_across_hosts(net: TestNetwork, out: Path, domain: int, evaluations: int, workers: dict[str, str],
-                          faults: Sequence[tuple[float, str, str]] = (), backend: str = "dds",
+                          faults: Sequence[tuple] = (), backend: str = "dds",
                           timeout: float = 240, wait_for: int | None = None, install: Path | None = None) -> dict:
-    """Generator + recorder on host ``a``, ``workers`` (id -> host) elsewhere, ``faults`` applied
-    at their offsets (s) after the generator starts: (offset, "down" | "up" | "kill", host or
-    worker id). Returns the summary, what the log says of each scenario, fault wall times, the
-    generator's log and each worker's process. The generator waits for ``wait_for`` workers
-    (default: all) before it starts. On rclpy every process needs the workspace ``install``
-    (node_process)."""
+    """Generator + recorder on host ``a``, ``workers`` (id -> host) elsewhere, and ``faults``
+    applied in order: (when, "down" | "up" | "kill", host or worker id), where ``when`` is a
+    predicate on a ``Progress`` (fires on an event: tests) or an offset in s after the generator
+    starts (bench/multihost.py's fixed schedule). A result probe on host ``a`` feeds the
+    ``Progress``; every worker waits until it is matched, so it misses no result.
+
+    Returns the summary, what the log says of each scenario, the faults as (wall time, action,
+    target), results seen when each fault fired, the generator's log and each worker's process.
+    The generator waits for ``wait_for`` workers (default: all) before it starts. On rclpy every
+    process needs the workspace ``install`` (node_process)."""
     import json
 
-    procs = {w: start_worker(net, host, domain, w, out / "workers", backend=backend, install=install)
+    probe = start_probe(net, "a", domain, backend, install)
+    procs = {w: start_worker(net, host, domain, w, out / "workers", backend=backend, install=install,
+                             result_subscribers=3)
              for w, host in workers.items()}
     campaign = start_campaign(net, "a", domain, out / "run", evaluations,
                               len(workers) if wait_for is None else wait_for,
                               backend=backend, install=install)
     generator_log = out / "run" / "logs" / "generator.log"
     began = wait_for_line(generator_log, "workers: starting", campaign, timeout)
-    applied = []
-    for offset, action, target in sorted(faults):
-        time.sleep(max(0.0, began + offset - time.time()))
-        if action == "kill":
-            procs[target].kill()
-        else:
-            net.set_link(target, action == "up")
-        applied.append((time.time(), action, target))
+    progress = Progress(probe, generator_log)
+    progress.mark(began)
+    deadline = time.monotonic() + timeout
+    if faults and not any(callable(f[0]) for f in faults):
+        faults = sorted(faults)
+    applied, seen = [], []
     try:
-        stdout, stderr = campaign.communicate(timeout=timeout)
+        for when, action, target in faults:
+            _wait_for_trigger(when, progress, began, campaign, deadline, f"{action} {target}")
+            if action == "kill":
+                procs[target].kill()
+            else:
+                net.set_link(target, action == "up")
+            applied.append((time.time(), action, target))
+            seen.append(progress.results)
+            progress.mark(applied[-1][0])
+        stdout, stderr = campaign.communicate(timeout=max(1.0, deadline - time.monotonic()))
     except subprocess.TimeoutExpired:
         campaign.kill()
         stdout, stderr = campaign.communicate()
+    except BaseException:
+        campaign.kill()
+        campaign.communicate()
+        raise
     summary = json.loads(stdout[stdout.index("{"):stdout.rindex("}") + 1]) if "{" in stdout else {}
     result = {"summary": summary, "returncode": campaign.returncode, "stderr": stderr, "began": began,
-              "faults": applied, "generator_log": generator_log.read_text(errors="replace"), "workers": procs}
+              "faults": applied, "results_seen_at_faults": seen, "results_seen": progress.results,
+              "generator_log": generator_log.read_text(errors="replace"), "workers": procs}
     if summary.get("mcap"):
         result["dispatch"] = read_dispatch(Path(summary["mcap"]), summary["run_id"])
     return result

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ambiegen_ros.core.attributes import Categorical, FloatInterval, IntRange
-from ambiegen_ros.problems.base import Budget, Evaluation, Problem
+from ambiegen_ros.core.problem import Budget, Evaluation, Problem
 
 
 @dataclass(frozen=True)

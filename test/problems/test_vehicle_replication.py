@@ -26,6 +26,7 @@ from ambiegen_ros.problems.vehicle import (
     _heading_deg,
     _kernels,
     check_roads,
+    polyline_lengths,
     replication_nodes,
     replication_points,
     sharpness_radius,
@@ -295,6 +296,22 @@ def test_numba_and_numpy_engines_agree(sampled):
     assert np.array_equal(ea.path, eb.path) and np.array_equal(ea.nodes, eb.nodes)
 
 
+@pytest.mark.skipif(not HAS_NUMBA, reason="numba not installed")
+def test_engines_agree_whatever_numpy_trig_returns(sampled, monkeypatch):
+    """Issue 18: on AVX-512 CPUs numpy's float64 sin/cos/arccos/arctan/arctan2 are Intel SVML, a
+    last bit away from the C library that the numba kernels call. Here numpy's answers are moved
+    one ulp on every CPU: the numpy car must not use them (it calls the C library too), so both
+    engines still agree bit for bit (the road itself is built by numpy for both)."""
+    for name in ("sin", "cos", "arccos", "arctan", "arctan2"):
+        fn = getattr(np, name)
+        monkeypatch.setattr(np, name, lambda *a, _fn=fn, **k: np.nextafter(_fn(*a, **k), np.inf))
+    G, L, _ = sampled
+    fast, slow = VehicleProblem({"engine": "numba"}), VehicleProblem({"engine": "numpy"})
+    a, b = fast.evaluate(G[:150], L[:150]), slow.evaluate(G[:150], L[:150])
+    assert a.valid.sum() > 100 and np.array_equal(a.valid, b.valid)
+    assert np.array_equal(a.f1, b.f1)
+
+
 # --- validity -----------------------------------------------------------------------------------------------
 def test_validity_rules(problem):
     rows = problem.evaluate_scenarios([
@@ -340,3 +357,46 @@ def test_environment_is_the_scored_road_everywhere(problem, sampled, tmp_path):
     assert outcome.metrics["road_length"] == pytest.approx(env.length, rel=1e-6)
     path = save_scenario_plot(problem, sc, tmp_path / "road.png", title="replication")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+# --- ties: the discrete rules on the replication code's own bits (issue 18) --------------------------------
+# Figures from the replication code itself (Random/car_road.py + vehicle.py, run unmodified): the polyline
+# length of its road points (shapely), its node count len(arange(0, 1 + 8 / L, 8 / L)) and its F1.
+TIES = [
+    # a road point lands on the strict 4 < y cut: theirs is cut there (closed-form sin/cos kept it)
+    ([("left", 45)] * 4 + [("straight", 50), ("straight", 46)], 6, 141.84402376762154, 19, 1.6254715754159117),
+    # L is a multiple of 8 m up to rounding: ceil(L / 8 + 1) flips with the last bit
+    ([("straight", 29), ("left", 60), ("straight", 7), ("straight", 6)], 5, 71.99999999999999, 10, 2.217570580808233),
+    ([("straight", 32), ("straight", 5), ("left", 60), ("straight", 7), ("right", 60), ("straight", 16),
+      ("straight", 32)], 6, 103.99999999999997, 14, 2.51476181221118),
+    # found by a search over tie-prone roads: the cut falls elsewhere with closed-form points
+    ([("straight", 50), ("left", 30), ("right", 30), ("straight", 16), ("right", 30), ("right", 45)],
+     5, 97.0582854123025, 14, 2.1331765002109986),
+]
+
+
+@pytest.mark.parametrize("segments, n_points, length, n_nodes, f1", TIES)
+@pytest.mark.parametrize("engine", ENGINES)
+def test_ties_fall_as_in_the_replication_code(segments, n_points, length, n_nodes, f1, engine):
+    problem = VehicleProblem({"engine": engine})
+    sc = road(*segments)
+    G, L = problem.codec.split(problem.codec.to_row(sc))
+    points, counts, _ = replication_points(G, L, problem.config)
+    if n_points is not None:
+        assert counts[0] == n_points
+    if length is not None:  # bit for bit: the builder's rotations and midpoints, GEOS's length
+        assert shapely.LineString(points).length == length
+        assert polyline_lengths(points, counts, problem.config)[0] == length
+    nodes, n = replication_nodes(points, counts, problem.config)
+    assert n[0] == n_nodes
+    ev = problem.evaluate_scenarios([sc])
+    assert ev.valid[0] and abs(ev.f1[0] - f1) < 1e-9
+
+
+def test_road_points_are_the_builders_midpoints(problem):
+    """Straights after turns keep the builder's rounding: x stays exactly 40.0 here (closed-form sin/cos
+    gave 39.99999999999999 and kept a point at y = 4.000000000000014 that the builder cuts)."""
+    sc = road(*([("left", 45)] * 4 + [("straight", 50), ("straight", 46)]))
+    G, L = problem.codec.split(problem.codec.to_row(sc))
+    points, counts, used = replication_points(G, L, problem.config)
+    assert points[-2:].tolist() == [[40.0, 100.0], [40.0, 50.0]] and used[0] == 5

@@ -19,7 +19,7 @@ venv on the path, so the build uses only the install's python packages.
 Every ROS-side process gets ``AMBIEGEN_TRANSPORT=rclpy`` (a broken rclpy is an error, never a
 silent fall-back to the DDS backend); venv-side processes get ``AMBIEGEN_TRANSPORT=dds`` and no
 ROS variables. ``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET`` everywhere; each test has its own
-ROS_DOMAIN_ID (90..99).
+ROS_DOMAIN_ID (``ros_domain``, test/conftest.py).
 """
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ skipped with the reason. ROS commands run as ``bash -c 'source ... && exec ...'`
 the ROS python sees the venv's packages (pymoo, numpy, mcap, shapely, rosbags, scipy) because the
 venv's site-packages directory is appended to PYTHONPATH after sourcing (conftest.ros_command).
 
-ROS_DOMAIN_ID 90..99 (one per test, per RMW), ``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET``. Tests with
+Each test its own ROS_DOMAIN_ID (``ros_domain``, test/conftest.py), ``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET``. Tests with
 an ``rmw`` parameter run on rmw_cyclonedds_cpp and on rmw_fastrtps_cpp (skipped, with the reason,
 when the install has no Fast DDS). Logs are read back with the repo's own reader
 (``runlog.summarize``) and independently with rosbags.
@@ -44,8 +44,6 @@ HERE = Path(__file__).resolve().parent
 # evaluations of each mixed-graph run (AMBIEGEN_MIXED_EVALUATIONS=2000 runs the issue's size)
 MIXED_EVALUATIONS = int(os.environ.get("AMBIEGEN_MIXED_EVALUATIONS", "30"))
 MIXED_TIMEOUT = 150 + 0.25 * MIXED_EVALUATIONS  # seconds a mixed-graph run may take
-RMW_DOMAINS = {"direction_rclpy_search": {"rmw_cyclonedds_cpp": 93, "rmw_fastrtps_cpp": 94},
-               "direction_rclpy_workers": {"rmw_cyclonedds_cpp": 95, "rmw_fastrtps_cpp": 96}}
 
 
 def answered(mcap: Path, run_id: str | None = None) -> dict[str, Any]:
@@ -108,14 +106,14 @@ LAUNCH_EVALUATIONS = 40
 
 
 @pytest.fixture(scope="session")
-def launched(workspace, tmp_path_factory) -> dict[str, Any]:
-    """`ros2 launch ambiegen_ros campaign.launch.py` (all rclpy, Cyclone, domain 90) run to its end."""
+def launched(workspace, tmp_path_factory, session_domains) -> dict[str, Any]:
+    """`ros2 launch ambiegen_ros campaign.launch.py` (all rclpy, Cyclone, a domain of its own) run to its end."""
     out = tmp_path_factory.mktemp("launch")
     args = dict(problem="thermostat", algorithm="ga", evaluations=LAUNCH_EVALUATIONS, workers=2, seed=3,
                 mode="in_the_loop", output_dir=str(out))
     cmd = "ros2 launch ambiegen_ros campaign.launch.py " + " ".join(shlex.quote(f"{k}:={v}") for k, v in args.items())
     t0 = time.monotonic()
-    run = ros_run(cmd, workspace, env=ros_env(90), timeout=240, cwd=out)
+    run = ros_run(cmd, workspace, env=ros_env(session_domains()), timeout=240, cwd=out)
     return {"out": out, "run": run, "elapsed": time.monotonic() - t0, "mcaps": sorted(out.glob("*.mcap"))}
 
 
@@ -142,15 +140,15 @@ def test_ros2_launch_campaign_ends_by_itself_with_every_scenario_answered(launch
     print(f"ros2 launch: {summary['scenarios_published']} scenarios in {launched['elapsed']:.0f} s (incl. launch start-up)")
 
 
-def test_ros2_launch_robot_campaign_on_fast_dds(jazzy, workspace, tmp_path):
+def test_ros2_launch_robot_campaign_on_fast_dds(jazzy, workspace, tmp_path, ros_domain):
     """What most Jazzy users run: the launch with RMW_IMPLEMENTATION=rmw_fastrtps_cpp (Jazzy's
     default RMW), on the robot problem, so OccupancyGrid maps and pose timelines cross Fast DDS and
-    the suite runs on the full model. Domain 100."""
+    the suite runs on the full model."""
     require(jazzy, "rmw_fastrtps_cpp")
     args = dict(problem="robot", algorithm="random", evaluations=30, workers=2, seed=4, mode="surrogate",
                 output_dir=str(tmp_path))
     cmd = "ros2 launch ambiegen_ros campaign.launch.py " + " ".join(shlex.quote(f"{k}:={v}") for k, v in args.items())
-    run = ros_run(cmd, workspace, env=ros_env(100, "rmw_fastrtps_cpp"), timeout=300, cwd=tmp_path)
+    run = ros_run(cmd, workspace, env=ros_env(ros_domain, "rmw_fastrtps_cpp"), timeout=300, cwd=tmp_path)
     assert run.returncode == 0, f"{run.stdout[-4000:]}\n{run.stderr[-3000:]}"
     (mcap,) = tmp_path.glob("*.mcap")
     summary = answered(mcap)
@@ -186,7 +184,7 @@ print(json.dumps(counts), flush=True)
 """
 
 
-def test_ros2_bag_info_and_play_of_our_log(jazzy, launched, workspace, graph, tmp_path):
+def test_ros2_bag_info_and_play_of_our_log(jazzy, launched, workspace, graph, tmp_path, ros_domain):
     require(jazzy, "ros2bag", "rosbag2_storage_mcap")
     if not launched["mcaps"]:
         pytest.fail(f"the launch wrote no MCAP:\n{launched['run'].stdout[-3000:]}")
@@ -194,7 +192,7 @@ def test_ros2_bag_info_and_play_of_our_log(jazzy, launched, workspace, graph, tm
     ours = {topics.RESULTS: 0, topics.scenarios("thermostat"): 0}
     for topic, *_ in iter_messages(mcap, set(ours)):
         ours[topic] += 1
-    info = ros_run(f"ros2 bag info {shlex.quote(str(mcap))}", workspace, env=ros_env(91))
+    info = ros_run(f"ros2 bag info {shlex.quote(str(mcap))}", workspace, env=ros_env(ros_domain))
     assert info.returncode == 0, info.stderr
     listed = dict(re.findall(r"Topic: (\S+) \| Type: \S+ \| Count: (\d+)", info.stdout))
     for topic, n in ours.items():
@@ -205,7 +203,7 @@ def test_ros2_bag_info_and_play_of_our_log(jazzy, launched, workspace, graph, tm
     script = tmp_path / "counter.py"
     script.write_text(COUNTER)
     g = graph()
-    env = ros_env(91)
+    env = ros_env(ros_domain)
     g.ros("counter", f"{jazzy['executable']} {script} 90 {shlex.quote(json.dumps(expected))}", workspace, env)
     g.wait_for("counter", "ready", 60)
     g.ros("play", f"ros2 bag play {shlex.quote(str(mcap))} --delay 3 --disable-keyboard-controls", workspace, env)
@@ -215,11 +213,11 @@ def test_ros2_bag_info_and_play_of_our_log(jazzy, launched, workspace, graph, tm
     assert got == expected, g.logs()
 
 
-def test_replay_executes_the_launched_log_on_rclpy_workers(launched, workspace, graph, tmp_path):
+def test_replay_executes_the_launched_log_on_rclpy_workers(launched, workspace, graph, tmp_path, ros_domain):
     if not launched["mcaps"]:
         pytest.fail("the launch wrote no MCAP")
     mcap, report = launched["mcaps"][0], tmp_path / "replay.json"
-    g, env = graph(), ros_env(92)
+    g, env = graph(), ros_env(ros_domain)
     g.ros("worker", f"ros2 run ambiegen_ros thermostat_sim {ros_args(worker_id='replay_worker')}", workspace, env)
     g.ros("replay", f"ros2 run ambiegen_ros replay {ros_args(log=mcap, mode='execute', report=report, subscriber_wait=60.0)}",
           workspace, env)
@@ -232,14 +230,14 @@ def test_replay_executes_the_launched_log_on_rclpy_workers(launched, workspace, 
 
 # --- short real runs of every executable, all on rclpy -------------------------------------------
 @pytest.mark.parametrize("problem", ["vehicle", "robot"])
-def test_ambiegen_campaign_under_ros2_run_on_rclpy(problem, workspace, tmp_path):
+def test_ambiegen_campaign_under_ros2_run_on_rclpy(problem, workspace, tmp_path, ros_domain):
     """`ros2 run ambiegen_ros ambiegen campaign`: its recorder, generator and sim worker run on the
     ROS python, hence on rclpy (AMBIEGEN_TRANSPORT=rclpy: no fall-back)."""
     out = tmp_path / "camp"
     cmd = (f"ros2 run ambiegen_ros ambiegen campaign --problem {problem} --algorithm random --evaluations 6 "
-           f"--population 3 --workers 1 --sim-model surrogate --seed 2 --domain-id 97 --discovery-range SUBNET "
+           f"--population 3 --workers 1 --sim-model surrogate --seed 2 --domain-id {ros_domain} --discovery-range SUBNET "
            f"--out {out} --json --timeout 150")
-    run = ros_run(cmd, workspace, env=ros_env(97), timeout=240)
+    run = ros_run(cmd, workspace, env=ros_env(ros_domain), timeout=240)
     logs = "\n".join(f"--- {p.name}\n{p.read_text(errors='replace')[-1500:]}" for p in (out / "logs").glob("*.log"))
     assert run.returncode == 0, f"{run.stdout[-2000:]}\n{run.stderr[-2000:]}\n{logs}"
     summary = json.loads(run.stdout[run.stdout.index("{"):])
@@ -250,9 +248,9 @@ def test_ambiegen_campaign_under_ros2_run_on_rclpy(problem, workspace, tmp_path)
 
 # --- mixed graphs -------------------------------------------------------------------------------
 @pytest.mark.parametrize("rmw", RMWS)
-def test_rclpy_generator_and_recorder_with_dds_backend_workers(rmw, jazzy, workspace, graph, tmp_path):
+def test_rclpy_generator_and_recorder_with_dds_backend_workers(rmw, jazzy, workspace, graph, tmp_path, ros_domain):
     require(jazzy, rmw)
-    domain = RMW_DOMAINS["direction_rclpy_search"][rmw]
+    domain = ros_domain
     g, env, mcap, run_id = graph(), ros_env(domain, rmw), tmp_path / "mixed.mcap", f"mixed-{rmw}"
     g.ros("recorder", f"ros2 run ambiegen_ros recorder {ros_args(output=mcap)}", workspace, env)
     for k in range(2):
@@ -272,9 +270,9 @@ def test_rclpy_generator_and_recorder_with_dds_backend_workers(rmw, jazzy, works
 
 
 @pytest.mark.parametrize("rmw", RMWS)
-def test_ambiegen_campaign_with_rclpy_workers(rmw, jazzy, workspace, graph, tmp_path):
+def test_ambiegen_campaign_with_rclpy_workers(rmw, jazzy, workspace, graph, tmp_path, ros_domain):
     require(jazzy, rmw)
-    domain = RMW_DOMAINS["direction_rclpy_workers"][rmw]
+    domain = ros_domain
     g, env, out = graph(), ros_env(domain, rmw), tmp_path / "camp"
     for k in range(2):
         name = f"rclpy_worker_{k}"
@@ -298,9 +296,9 @@ def test_ambiegen_campaign_with_rclpy_workers(rmw, jazzy, workspace, graph, tmp_
 
 
 # --- the adapter ---------------------------------------------------------------------------------
-def test_sut_adapter_against_external_sim_on_rclpy(workspace, graph, tmp_path):
+def test_sut_adapter_against_external_sim_on_rclpy(workspace, graph, tmp_path, ros_domain):
     """external_sim + sut_adapter + generator + recorder, all rclpy; verdicts = the full model's."""
-    g, env, mcap = graph(), ros_env(98), tmp_path / "adapter.mcap"
+    g, env, mcap = graph(), ros_env(ros_domain), tmp_path / "adapter.mcap"
     common = dict(problem="vehicle", profile="refined", time_scale=40.0)
     g.ros("recorder", f"ros2 run ambiegen_ros recorder {ros_args(output=mcap)}", workspace, env)
     g.ros("external", f"ros2 run ambiegen_ros external_sim {ros_args(**common)}", workspace, env)
@@ -323,7 +321,7 @@ def test_sut_adapter_against_external_sim_on_rclpy(workspace, graph, tmp_path):
         assert outcomes[sid].failure_kind == ref.failure_kind, (sid, outcomes[sid].detail, ref.detail)
 
 
-def test_sut_adapter_nav2_action_mode_against_a_fake_navigate_to_pose(jazzy, workspace, graph, monkeypatch):
+def test_sut_adapter_nav2_action_mode_against_a_fake_navigate_to_pose(jazzy, workspace, graph, monkeypatch, ros_domain):
     """goal_mode:=action: the goal goes out as a nav2_msgs NavigateToPose goal to a typed rclpy
     action server standing in for Nav2, which hands it to external_sim; odometry gives the verdict."""
     if "nav2_msgs" not in jazzy["packages"]:
@@ -331,7 +329,7 @@ def test_sut_adapter_nav2_action_mode_against_a_fake_navigate_to_pose(jazzy, wor
                     "(sim_nodes/sut_adapter.py), so no typed navigate_to_pose server can stand in for Nav2")
     from test_adapter import PROFILE, Driver, easy_robot_elements, scenario  # the DDS-backend driver of test/ros
 
-    domain = 99
+    domain = ros_domain
     g, env = graph(), ros_env(domain)
     common = dict(problem="robot", profile=PROFILE["robot"], time_scale=150.0)
     g.ros("fake_nav2", f"{jazzy['executable']} {HERE / 'fake_nav2.py'} /fake_nav2/goal_pose", workspace, env)

@@ -2,7 +2,7 @@
 a generator complete a run under ROS_SECURITY_ENABLE=true / Enforce; a node whose enclave does not
 exist must not start. (The DDS backend's refusal is tested in test/ros/test_sros2.py.)
 
-Domain 6: the keystore's governance names the domain it was created on.
+The test's own domain (``ros_domain``): the keystore's governance names the domain it was created on.
 """
 from __future__ import annotations
 
@@ -10,19 +10,18 @@ import shlex
 
 from jazzy_env import require, ros_args, ros_env, ros_run
 
-DOMAIN = 6
 ENFORCE = {"ROS_SECURITY_ENABLE": "true", "ROS_SECURITY_STRATEGY": "Enforce"}
 
 
-def test_rclpy_run_under_enforced_sros2(jazzy, workspace, graph, tmp_path):
+def test_rclpy_run_under_enforced_sros2(jazzy, workspace, graph, tmp_path, ros_domain):
     require(jazzy, "sros2")
     keystore = shlex.quote(str(tmp_path / "keystore"))
     made = ros_run(f"bash -c 'ros2 security create_keystore {keystore} && "
                    f"ros2 security create_enclave {keystore} /ambiegen/worker && "
                    f"ros2 security create_enclave {keystore} /ambiegen/generator'",
-                   env=ros_env(DOMAIN), timeout=300)
+                   env=ros_env(ros_domain), timeout=300)
     assert made.returncode == 0, made.stdout + made.stderr
-    secure = ros_env(DOMAIN, ROS_SECURITY_KEYSTORE=str(tmp_path / "keystore"), **ENFORCE)
+    secure = ros_env(ros_domain, ROS_SECURITY_KEYSTORE=str(tmp_path / "keystore"), **ENFORCE)
 
     stranger = ros_run("timeout 60 ros2 run ambiegen_ros thermostat_sim --ros-args --enclave /ambiegen/nowhere "
                        "-p model:=surrogate", workspace, secure, timeout=120)

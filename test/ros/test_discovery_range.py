@@ -7,7 +7,9 @@ meet nobody, and with multicast off on the network only ROS_STATIC_PEERS connect
 The namespace tests need root; they run for the DDS backend and, where a ROS 2 Jazzy install
 with rclpy is found (as for test/real_ros), for rclpy: Jazzy's own rmw must honour the same
 variables the same way, also in a graph that mixes rclpy and DDS-backend nodes.
-Domain ids 74..78 and 96..98 (this file only; the namespaces keep them off the machine's network).
+Domain ids 74..78 and 96..98 inside the namespaces (each test's own network: nothing else can meet
+them); the tests in the machine's own network take theirs from ``ros_domain``. Probes stop on
+events (each has heard whom it expects); only "hears nobody" needs a listening window.
 """
 from __future__ import annotations
 
@@ -29,13 +31,14 @@ from ambiegen_ros.ros.transport.base import TransportError  # noqa: E402
 from ambiegen_ros.ros.transport.discovery import (DiscoveryOptions, cyclone_fragment,  # noqa: E402
                                                   options_from_env)
 
-# A node that says its name on /probe and reports whom it heard. Its clock starts once the node
-# exists, so slow imports on a busy machine do not eat the listening time.
+# A node that says its name on /probe and reports whom it heard. It prints UP once its node exists,
+# GOT once it has heard every name it expects (argv[2]), and runs until its stdin closes, so that
+# no probe leaves before its peers have heard it; then it prints HEARD with every name it heard.
 PROBE = r"""
-import sys, time
+import sys, threading
 from ambiegen_ros.ros.transport import create_node
 from ambiegen_ros.ros.qos import DEFAULT
-me, secs = sys.argv[1], float(sys.argv[2])
+me, expect = sys.argv[1], set(filter(None, sys.argv[2].split(",")))
 node = create_node("probe_" + me, argv=[])
 heard = set()
 def on(msg):
@@ -43,14 +46,24 @@ def on(msg):
         heard.add(msg.data)
 node.create_subscription("std_msgs/msg/String", "/probe", on, DEFAULT)
 pub = node.create_publisher("std_msgs/msg/String", "/probe", DEFAULT)
-end = time.monotonic() + secs
-while time.monotonic() < end:
+print("UP", flush=True)
+done = threading.Event()
+threading.Thread(target=lambda: (sys.stdin.read(), done.set()), daemon=True).start()
+said = False
+while not done.is_set():
     pub.publish(node.new_message("std_msgs/msg/String", data=me))
     node.spin_once(0.1)
+    if expect and not said and expect <= heard:
+        print("GOT", flush=True)
+        said = True
 print("HEARD", ",".join(sorted(heard)), "BACKEND", node.backend_name, flush=True)
 node.shutdown()
 """
+# Probes that expect names stop waiting when they have heard them (an event). Probes that must hear
+# nobody listen this long once every probe is up: a window a busy machine can only make pass
+# wrongly (discovery too slow to be seen), never fail wrongly.
 LISTEN_S = 6.0
+PATIENCE = 180.0  # s: the bound of every wait that ends on an event (a hung probe)
 BACKENDS = [
     "dds",
     pytest.param("rclpy", marks=pytest.mark.skipif(bool(netns.rclpy_unavailable_reason()),
@@ -104,17 +117,17 @@ def test_domain_config_puts_the_users_file_after_the_scope(monkeypatch):
 
 @pytest.mark.parametrize("env", [{"ROS_AUTOMATIC_DISCOVERY_RANGE": "subnet"},
                                  {"ROS_STATIC_PEERS": "no-such-host.invalid"}])
-def test_a_node_with_a_bad_scope_exits_with_one_clear_line(env):
+def test_a_node_with_a_bad_scope_exits_with_one_clear_line(env, ros_domain):
     proc = subprocess.run(
         [sys.executable, "-m", "sim_nodes.thermostat_sim", "--ros-args", "-p", "model:=surrogate"],
-        cwd=REPO, env=netns.node_env(74, AMBIEGEN_TRANSPORT="dds", **env), capture_output=True, text=True,
+        cwd=REPO, env=netns.node_env(ros_domain, AMBIEGEN_TRANSPORT="dds", **env), capture_output=True, text=True,
         timeout=120,
     )
     assert proc.returncode == 2, proc.stderr[-2000:]
     assert list(env)[0] in proc.stderr and "Traceback" not in proc.stderr
 
 
-def test_campaign_defaults_to_localhost_and_rejects_remote_workers_without_a_wider_scope(tmp_path):
+def test_campaign_defaults_to_localhost_and_rejects_remote_workers_without_a_wider_scope(tmp_path, ros_domain):
     from ambiegen_ros.campaign import Campaign, CampaignSpec, discovery_scope
 
     assert discovery_scope(None, {}) == "LOCALHOST"
@@ -125,7 +138,7 @@ def test_campaign_defaults_to_localhost_and_rejects_remote_workers_without_a_wid
     proc = subprocess.run(
         [sys.executable, "-m", "ambiegen_ros", "campaign", "--problem", "thermostat", "--workers", "0",
          "--remote-workers", "2", "--out", str(tmp_path / "r")],
-        cwd=REPO, env=netns.node_env(74), capture_output=True, text=True, timeout=120,
+        cwd=REPO, env=netns.node_env(ros_domain), capture_output=True, text=True, timeout=120,
     )
     assert proc.returncode == 2 and "--discovery-range subnet" in proc.stderr, proc.stderr
     assert not (tmp_path / "r").exists()
@@ -143,15 +156,42 @@ def network():
 
 
 def _probes(net, backend: str, specs: list[tuple]) -> dict[str, tuple[set, str]]:
-    """Run probes (name, host, domain, env[, backend]) at once; name -> (names it heard, backend it ran on)."""
-    procs = {}
-    for name, host, domain, env, *own_backend in specs:
-        args, penv = netns.node_process(["-c", PROBE, name, str(LISTEN_S)], domain, *own_backend or [backend], **env)
-        procs[name] = net.popen(host, args, cwd=REPO, env=penv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                text=True)
+    """Run probes (name, host, domain, env, expected names[, backend]) at once, until each has heard
+    the names it expects and every probe has listened LISTEN_S; name -> (names it heard, backend)."""
+    import threading
+
+    procs, lines, expects, readers = {}, {}, {}, {}
+    for name, host, domain, env, expect, *own_backend in specs:
+        args, penv = netns.node_process(["-c", PROBE, name, ",".join(sorted(expect))], domain,
+                                        *own_backend or [backend], **env)
+        procs[name] = net.popen(host, args, cwd=REPO, env=penv, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                stderr=subprocess.STDOUT, text=True)
+        lines[name], expects[name] = [], set(expect)
+        readers[name] = threading.Thread(target=lambda p=procs[name], out=lines[name]: out.extend(p.stdout), daemon=True)
+        readers[name].start()
+
+    def wait(what: str, ready) -> None:
+        deadline = time.monotonic() + PATIENCE
+        while not ready():
+            dead = [n for n, p in procs.items() if p.poll() is not None]
+            assert not dead, f"probe {dead[0]} ended early:\n{''.join(lines[dead[0]])[-3000:]}"
+            assert time.monotonic() < deadline, f"no {what} after {PATIENCE:g} s: " + str(
+                {n: "".join(out)[-500:] for n, out in lines.items()})
+            time.sleep(0.05)
+
+    try:
+        wait("UP from every probe", lambda: all("UP\n" in out for out in lines.values()))
+        listen_until = time.monotonic() + LISTEN_S
+        wait("GOT from every probe that expects names",
+             lambda: all("GOT\n" in lines[n] for n, e in expects.items() if e) and time.monotonic() >= listen_until)
+    finally:
+        for proc in procs.values():
+            proc.stdin.close()
     heard = {}
     for name, proc in procs.items():
-        out, _ = proc.communicate(timeout=180)
+        proc.wait(timeout=PATIENCE)
+        readers[name].join(PATIENCE)  # the rest of its output, to the end
+        out = "".join(lines[name])
         line = next((ln for ln in out.splitlines() if ln.startswith("HEARD")), None)
         assert line is not None and proc.returncode == 0, f"probe {name} failed:\n{out[-3000:]}"
         _, names, _, ran_on = line.split(" ")
@@ -164,10 +204,12 @@ def test_localhost_and_off_keep_nodes_home(network, backend):
     local = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
     off = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF"}
     heard = _probes(network, backend, [
-        ("a_local1", "a", 74, local), ("a_local2", "a", 74, local), ("b_subnet", "b", 74, {}),
-        ("a_off1", "a", 75, off), ("a_off2", "a", 75, off),
-        ("a_default", "a", 76, {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SYSTEM_DEFAULT"}), ("b_default", "b", 76, {}),
-        ("a_other_domain", "a", 77, local),
+        ("a_local1", "a", 74, local, {"a_local2"}), ("a_local2", "a", 74, local, {"a_local1"}),
+        ("b_subnet", "b", 74, {}, set()),
+        ("a_off1", "a", 75, off, set()), ("a_off2", "a", 75, off, set()),
+        ("a_default", "a", 76, {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SYSTEM_DEFAULT"}, {"b_default"}),
+        ("b_default", "b", 76, {}, {"a_default"}),
+        ("a_other_domain", "a", 77, local, set()),
     ])
     assert all(ran_on == backend for _, ran_on in heard.values())
     assert heard["a_local1"][0] == {"a_local2"} and heard["a_local2"][0] == {"a_local1"}
@@ -182,8 +224,8 @@ def test_static_peers_connect_hosts_without_multicast(network, backend):
     network.set_multicast(False)
     a, b = network.address("a"), network.address("b")
     heard = _probes(network, backend, [
-        ("a_alone", "a", 77, {}), ("b_alone", "b", 77, {}),
-        ("a_peer", "a", 78, {"ROS_STATIC_PEERS": b}), ("b_peer", "b", 78, {"ROS_STATIC_PEERS": a}),
+        ("a_alone", "a", 77, {}, set()), ("b_alone", "b", 77, {}, set()),
+        ("a_peer", "a", 78, {"ROS_STATIC_PEERS": b}, {"b_peer"}), ("b_peer", "b", 78, {"ROS_STATIC_PEERS": a}, {"a_peer"}),
     ])
     assert heard["a_alone"][0] == set() and heard["b_alone"][0] == set()  # no multicast: no discovery
     assert heard["a_peer"][0] == {"b_peer"} and heard["b_peer"][0] == {"a_peer"}
@@ -198,9 +240,10 @@ def test_rclpy_and_dds_nodes_meet_only_as_the_scope_allows(network):
     a, b = network.address("a"), network.address("b")
     local = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
     heard = _probes(network, "dds", [
-        ("a_rclpy_peer", "a", 96, {"ROS_STATIC_PEERS": b}, "rclpy"), ("b_dds_peer", "b", 96, {"ROS_STATIC_PEERS": a}),
-        ("a_rclpy_local", "a", 97, local, "rclpy"), ("a_dds_local", "a", 97, local),
-        ("a_rclpy_alone", "a", 98, {}, "rclpy"), ("b_dds_alone", "b", 98, {}),
+        ("a_rclpy_peer", "a", 96, {"ROS_STATIC_PEERS": b}, {"b_dds_peer"}, "rclpy"),
+        ("b_dds_peer", "b", 96, {"ROS_STATIC_PEERS": a}, {"a_rclpy_peer"}),
+        ("a_rclpy_local", "a", 97, local, {"a_dds_local"}, "rclpy"), ("a_dds_local", "a", 97, local, {"a_rclpy_local"}),
+        ("a_rclpy_alone", "a", 98, {}, set(), "rclpy"), ("b_dds_alone", "b", 98, {}, set()),
     ])
     assert {name: ran_on for name, (_, ran_on) in heard.items()} == {
         "a_rclpy_peer": "rclpy", "b_dds_peer": "dds", "a_rclpy_local": "rclpy", "a_dds_local": "dds",

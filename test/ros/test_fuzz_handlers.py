@@ -1,7 +1,7 @@
 """Hypothesis against every subscription handler of every node, through the transport's guard.
 
 The nodes are the real ones (worker, SUT adapter, external simulator, generator, recorder) on the
-DDS backend in this process (ROS_DOMAIN_ID 5, nothing else on it); each generated sample is handed
+DDS backend in this process (a ROS_DOMAIN_ID of its own from ``module_domains``); each generated sample is handed
 to the subscription exactly as the backend hands it a received sample (``DdsSubscription._deliver``:
 size limit, decoding, handler). Nothing may escape into ``spin``, every sample is counted, memory
 stays flat, and a scenario that decodes is answered with a result naming the bad field.
@@ -34,7 +34,6 @@ pytestmark = pytest.mark.skipif(
     os.environ.get("AMBIEGEN_TRANSPORT", "auto") == "rclpy", reason="feeds the DDS backend's subscriptions"
 )
 
-DOMAIN = "5"
 FUZZ = settings(max_examples=200, deadline=None, suppress_health_check=list(HealthCheck), database=None)
 REG = get_registry()
 ANSWERS = {FAILURE_KINDS["invalid_scenario"], FAILURE_KINDS["error"]}
@@ -48,10 +47,10 @@ def rss_bytes() -> int:
 
 
 @pytest.fixture(scope="module")
-def graph(tmp_path_factory):
+def graph(tmp_path_factory, module_domains):
     """One of each node, all subscriptions reachable; shut down at the end."""
     old = os.environ.get("ROS_DOMAIN_ID")
-    os.environ["ROS_DOMAIN_ID"] = DOMAIN
+    os.environ["ROS_DOMAIN_ID"] = str(module_domains())
     from ambiegen_ros.nodes.generator import Generator
     from ambiegen_ros.nodes.recorder import Recorder
     from ambiegen_ros.ros.transport import create_node

@@ -1,7 +1,8 @@
 """No log or run directory is ever overwritten (issue 9): recorder, campaign, replay --record, recover.
 
 Real processes over real DDS (the recorder node, ``ambiegen campaign``, ``ambiegen replay``,
-``ambiegen recover``), each test on its own ROS_DOMAIN_ID (64..67). A refusal is exit status 2 with
+``ambiegen recover``), each test on its own ROS_DOMAIN_ID (``ros_domain``). The shared campaign folder is
+only read; the test that writes into a campaign folder works on a copy, so any order passes. A refusal is exit status 2 with
 one line naming the file, and the bytes already there are unchanged.
 """
 from __future__ import annotations
@@ -9,6 +10,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -31,7 +33,7 @@ pytestmark = pytest.mark.skipif(
 )
 
 
-def ambiegen(domain: int, *args: str, timeout: float = 240) -> subprocess.CompletedProcess:
+def ambiegen(domain: int, *args: str, timeout: float = 480) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "ambiegen_ros", *args], cwd=REPO, env=_env(domain),
                           capture_output=True, text=True, timeout=timeout)
 
@@ -50,20 +52,22 @@ def one_error_line(proc: subprocess.CompletedProcess) -> str:
 
 
 CAMPAIGN = ["campaign", "--problem", "thermostat", "--algorithm", "ga", "--evaluations", "60", "--population", "20",
-            "--offspring", "20", "--seed", "3", "--sim-model", "surrogate", "--timeout", "150"]
+            "--offspring", "20", "--seed", "3", "--sim-model", "surrogate", "--timeout", "400"]  # a safety net
 
 
 @pytest.fixture(scope="module")
-def campaign_dir(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
+def campaign_dir(tmp_path_factory, module_domains) -> tuple[Path, subprocess.CompletedProcess]:
+    """One campaign's folder, shared read-only: a test that writes into it works on a copy."""
     out = tmp_path_factory.mktemp("campaign") / "run"
-    run = ambiegen(66, *CAMPAIGN, "--domain-id", "66", "--out", str(out))
+    domain = module_domains()
+    run = ambiegen(domain, *CAMPAIGN, "--domain-id", str(domain), "--out", str(out))
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
     return out, run
 
 
 # --- the recorder node --------------------------------------------------------------------------
-def test_recorder_refuses_an_existing_file_and_leaves_its_bytes(nodes_factory, tmp_path):
-    nodes = nodes_factory(64)
+def test_recorder_refuses_an_existing_file_and_leaves_its_bytes(nodes_factory, tmp_path, ros_domain):
+    nodes = nodes_factory(ros_domain)
     log = tmp_path / "campaign.mcap"
     log.write_bytes(b"\x89MCAP0\r\n" + os.urandom(50_000))  # an earlier run's log, as far as anyone knows
     before = digest(log)
@@ -74,8 +78,8 @@ def test_recorder_refuses_an_existing_file_and_leaves_its_bytes(nodes_factory, t
     assert digest(log) == before
 
 
-def test_recorder_overwrite_true_replaces_the_file_and_finalises_it_on_sigint(nodes_factory, tmp_path):
-    nodes = nodes_factory(64)
+def test_recorder_overwrite_true_replaces_the_file_and_finalises_it_on_sigint(nodes_factory, tmp_path, ros_domain):
+    nodes = nodes_factory(ros_domain)
     log = tmp_path / "old.mcap"
     log.write_bytes(b"old bytes " * 1000)
     nodes.start("recorder", "ambiegen_ros.nodes.recorder", output=str(log), overwrite=True)
@@ -88,8 +92,8 @@ def test_recorder_overwrite_true_replaces_the_file_and_finalises_it_on_sigint(no
         assert make_reader(fh).get_summary() is not None  # a complete MCAP (summary + footer), not the old bytes
 
 
-def test_two_recorders_on_one_new_path_one_gets_it_the_other_is_refused(nodes_factory, tmp_path):
-    nodes = nodes_factory(65)
+def test_two_recorders_on_one_new_path_one_gets_it_the_other_is_refused(nodes_factory, tmp_path, ros_domain):
+    nodes = nodes_factory(ros_domain)
     log = tmp_path / "race.mcap"
     for name in ("rec_a", "rec_b"):  # started together: only one O_EXCL create can succeed
         nodes.start(name, "ambiegen_ros.nodes.recorder", output=str(log))
@@ -132,15 +136,16 @@ def test_campaign_prints_a_table_names_its_log_by_run_and_time(campaign_dir):
         json.loads(table)  # people's output by default; --json gives the dict (below)
 
 
-def test_campaign_twice_into_one_dir_is_refused_and_overwrite_adds_a_new_log(campaign_dir):
-    out, _ = campaign_dir
+def test_campaign_twice_into_one_dir_is_refused_and_overwrite_adds_a_new_log(campaign_dir, tmp_path, ros_domain):
+    out = tmp_path / "run"
+    shutil.copytree(campaign_dir[0], out)  # the shared folder stays as the other tests expect it, in any order
     before = digest(out)
-    again = ambiegen(66, *CAMPAIGN, "--domain-id", "66", "--out", str(out), timeout=60)
+    again = ambiegen(ros_domain, *CAMPAIGN, "--domain-id", str(ros_domain), "--out", str(out), timeout=120)
     line = one_error_line(again)
     assert str(out) in line and "--overwrite" in line
     assert digest(out) == before  # nothing written, nothing started
 
-    forced = ambiegen(66, *CAMPAIGN, "--domain-id", "66", "--out", str(out), "--overwrite", "--json")
+    forced = ambiegen(ros_domain, *CAMPAIGN, "--domain-id", str(ros_domain), "--out", str(out), "--overwrite", "--json")
     assert forced.returncode == 0, forced.stdout[-2000:] + forced.stderr[-2000:]
     printed = json.loads(forced.stdout)
     assert printed == json.loads((out / "summary.json").read_text())
@@ -149,47 +154,47 @@ def test_campaign_twice_into_one_dir_is_refused_and_overwrite_adds_a_new_log(cam
     assert Path(printed["mcap"]).name not in before and summarize(printed["mcap"], printed["run_id"])["unresolved"] == []
 
 
-def test_campaign_out_that_is_a_file_is_refused(tmp_path):
+def test_campaign_out_that_is_a_file_is_refused(tmp_path, ros_domain):
     target = tmp_path / "notes.txt"
     target.write_text("mine")
-    line = one_error_line(ambiegen(66, *CAMPAIGN, "--domain-id", "66", "--out", str(target), timeout=60))
+    line = one_error_line(ambiegen(ros_domain, *CAMPAIGN, "--domain-id", str(ros_domain), "--out", str(target), timeout=120))
     assert str(target) in line and target.read_text() == "mine"
 
 
 # --- ambiegen replay --record / ambiegen recover -----------------------------------------------------
-def test_replay_record_onto_an_existing_file_is_refused(campaign_dir, tmp_path):
+def test_replay_record_onto_an_existing_file_is_refused(campaign_dir, tmp_path, ros_domain):
     out, _ = campaign_dir
     log = Path(json.loads((out / "summary.json").read_text())["mcap"])
     existing = tmp_path / "new.mcap"
     existing.write_bytes(b"a log from yesterday")
-    proc = ambiegen(67, "replay", str(log), "--execute", "--workers", "1", "--record", str(existing),
-                    "--domain-id", "67", "--report", str(tmp_path / "r.json"), timeout=60)
+    proc = ambiegen(ros_domain, "replay", str(log), "--execute", "--workers", "1", "--record", str(existing),
+                    "--domain-id", str(ros_domain), "--report", str(tmp_path / "r.json"), timeout=120)
     assert str(existing) in one_error_line(proc)
     assert existing.read_bytes() == b"a log from yesterday" and not (tmp_path / "replay_logs").exists()
 
 
-def test_recover_never_writes_over_its_input_or_an_existing_output(campaign_dir, tmp_path):
+def test_recover_never_writes_over_its_input_or_an_existing_output(campaign_dir, tmp_path, ros_domain):
     out, _ = campaign_dir
     log = Path(json.loads((out / "summary.json").read_text())["mcap"])
     src = tmp_path / "cut.mcap"
     src.write_bytes(log.read_bytes()[: log.stat().st_size // 2])  # what a SIGKILL leaves
     source = digest(src)
 
-    assert "is the input" in one_error_line(ambiegen(67, "recover", str(src), "-o", str(src)))
+    assert "is the input" in one_error_line(ambiegen(ros_domain, "recover", str(src), "-o", str(src)))
     link = tmp_path / "link.mcap"
     link.symlink_to(src)
-    assert "is the input" in one_error_line(ambiegen(67, "recover", str(src), "-o", str(link)))
+    assert "is the input" in one_error_line(ambiegen(ros_domain, "recover", str(src), "-o", str(link)))
     hard = tmp_path / "hard.mcap"
     os.link(src, hard)
-    assert "is the input" in one_error_line(ambiegen(67, "recover", str(src), "-o", str(hard), "--overwrite"))
+    assert "is the input" in one_error_line(ambiegen(ros_domain, "recover", str(src), "-o", str(hard), "--overwrite"))
 
     default_out = tmp_path / "cut.recovered.mcap"
     default_out.write_bytes(b"earlier recovery")
-    line = one_error_line(ambiegen(67, "recover", str(src)))
+    line = one_error_line(ambiegen(ros_domain, "recover", str(src)))
     assert str(default_out) in line and "--overwrite" in line and default_out.read_bytes() == b"earlier recovery"
     assert digest(src) == source
 
-    done = ambiegen(67, "recover", str(src), "--overwrite")
+    done = ambiegen(ros_domain, "recover", str(src), "--overwrite")
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout)["messages"] > 0 and digest(src) == source
     with open(default_out, "rb") as fh:

@@ -1,6 +1,6 @@
 """Sim workers started alike get distinct node names (issue 9): the name follows ``worker_id``.
 
-Real worker subprocesses on the DDS backend (ROS_DOMAIN_ID 70 and 71, this file's own); an
+Real worker subprocesses on the DDS backend (each test its own ROS_DOMAIN_ID: ``ros_domain``); an
 observer node in this process reads the node names from the ``ros_discovery_info`` the workers
 publish (``publishers_info``) and the worker ids from their heartbeats.
 """
@@ -26,17 +26,15 @@ from sim_nodes.worker import node_name_for, worker_node  # noqa: E402
 pytestmark = pytest.mark.skipif(
     os.environ.get("AMBIEGEN_TRANSPORT", "auto") == "rclpy", reason="these tests drive the DDS backend"
 )
-DOMAIN = 70
-UNIT_DOMAIN = 71
 
 
 @pytest.fixture
-def workers(tmp_path):
+def workers(tmp_path, ros_domain):
     """Start worker subprocesses (``python -m sim_nodes.robot_sim``); SIGINT, then kill, at teardown."""
     procs: dict[str, subprocess.Popen] = {}
 
     def start(label: str, *ros_args: str) -> subprocess.Popen:
-        env = dict(os.environ, ROS_DOMAIN_ID=str(DOMAIN), PYTHONUNBUFFERED="1")
+        env = dict(os.environ, ROS_DOMAIN_ID=str(ros_domain), PYTHONUNBUFFERED="1")
         env.pop("AMBIEGEN_TRANSPORT", None)
         args = [sys.executable, "-m", "sim_nodes.robot_sim", "--ros-args", "-p", "model:=surrogate",
                 "-p", "min_result_subscribers:=0", "-p", "heartbeat_period:=0.2", *ros_args]
@@ -63,8 +61,8 @@ def test_name_rule_and_sanitizing():
     assert node_name_for("w_ok") == "w_ok"
 
 
-def test_params_file_keyed_by_the_executable_name_still_applies(tmp_path, monkeypatch):
-    monkeypatch.setenv("ROS_DOMAIN_ID", str(UNIT_DOMAIN))
+def test_params_file_keyed_by_the_executable_name_still_applies(tmp_path, monkeypatch, ros_domain):
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(ros_domain))
     params = tmp_path / "p.yaml"
     params.write_text("robot_sim:\n  ros__parameters:\n    worker_id: from-file\n    model: surrogate\n")
     node, default_id = worker_node("robot_sim", ["robot_sim", "--ros-args", "--params-file", str(params)])
@@ -77,10 +75,10 @@ def test_params_file_keyed_by_the_executable_name_still_applies(tmp_path, monkey
         node.shutdown()
 
 
-def test_sut_adapter_follows_the_same_rule(monkeypatch):
+def test_sut_adapter_follows_the_same_rule(monkeypatch, ros_domain):
     from sim_nodes.sut_adapter import SutAdapter
 
-    monkeypatch.setenv("ROS_DOMAIN_ID", str(UNIT_DOMAIN))
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(ros_domain))
     for ros_args, name, worker_id in (
         (["-p", "worker_id:=nav-2"], "nav_2", "nav-2"),
         ([], f"sut_adapter_{os.getpid()}", f"sut_adapter_{os.getpid()}"),
@@ -110,7 +108,7 @@ def test_two_plain_workers_have_distinct_names_and_remap_wins(workers, test_node
         names.update(ep.node_name for ep in observer.publishers_info(topics.WORKERS) if ep.node_name)
         return names >= want_names and beats >= want_ids
 
-    deadline = time.monotonic() + 120.0  # four Python processes on a shared 2-core machine
+    deadline = time.monotonic() + 120.0  # a safety net: the wait ends when all four are seen
     while time.monotonic() < deadline and not seen():
         dead = [k for k, p in workers.procs.items() if p.poll() is not None]
         assert not dead, f"worker {dead[0]} exited:\n{workers.log(dead[0])[-3000:]}"
@@ -123,10 +121,10 @@ def test_two_plain_workers_have_distinct_names_and_remap_wins(workers, test_node
 
 
 @pytest.fixture
-def test_node_names_observer(monkeypatch):
+def test_node_names_observer(monkeypatch, ros_domain):
     from ambiegen_ros.ros.transport import create_node
 
-    monkeypatch.setenv("ROS_DOMAIN_ID", str(DOMAIN))
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(ros_domain))
     node = create_node("names_observer", backend="dds", argv=["observer"])
     yield node
     node.shutdown()

@@ -6,8 +6,8 @@ metadata, ``summary.json`` and ``suite.json``; a worker of another profile is ne
 scenario, and answers scenarios offered to anyone with an ``ERROR`` result instead of scoring them
 in another environment.
 
-In-process nodes and node processes over real DDS on ROS_DOMAIN_ID 84..87 (no other test uses
-them; ids above 101 fall into Linux's ephemeral port range). Every wait is bounded.
+In-process nodes and node processes over real DDS, each test on its own ROS_DOMAIN_ID
+(``ros_domain``, test/conftest.py). Every wait ends on an event; its bound is a safety net.
 """
 from __future__ import annotations
 
@@ -49,8 +49,8 @@ def _env(domain: int) -> dict[str, str]:
     return env
 
 
-def test_every_node_lists_the_profile_parameter_in_its_help():
-    procs = {m: subprocess.Popen([sys.executable, "-m", m, "--help"], cwd=REPO, env=_env(84), text=True,
+def test_every_node_lists_the_profile_parameter_in_its_help(ros_domain):
+    procs = {m: subprocess.Popen([sys.executable, "-m", m, "--help"], cwd=REPO, env=_env(ros_domain), text=True,
                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT) for m in NODE_MODULES}
     for module, proc in procs.items():
         out, _ = proc.communicate(timeout=60)
@@ -60,12 +60,12 @@ def test_every_node_lists_the_profile_parameter_in_its_help():
 
 
 @pytest.fixture
-def in_process(monkeypatch):
-    """make(build, node name, **parameters): ``build(node)`` in this process on domain 84."""
+def in_process(monkeypatch, ros_domain):
+    """make(build, node name, **parameters): ``build(node)`` in this process on the test's domain."""
     from ambiegen_ros.ros.transport import create_node
 
     made = []
-    monkeypatch.setenv("ROS_DOMAIN_ID", "84")
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(ros_domain))
 
     def make(build, name: str, **params: Any):
         node = create_node(name, argv=[], parameter_overrides=params)
@@ -120,13 +120,13 @@ def test_nodes_build_their_problem_with_the_profile_parameter(in_process, tmp_pa
         in_process(Generator, "generator", problem="thermostat", profile="paper")
 
 
-def test_campaign_profile_reaches_every_node_and_every_output(tmp_path):
+def test_campaign_profile_reaches_every_node_and_every_output(tmp_path, ros_domain):
     out = tmp_path / "run"
     args = [sys.executable, "-m", "ambiegen_ros", "campaign", "--problem", "thermostat", "--algorithm", "ga",
             "--mode", "in_the_loop", "--sim-model", "surrogate", "--profile", "refined", "--population", "16",
-            "--offspring", "16", "--evaluations", "48", "--seed", "5", "--workers", "2", "--domain-id", "85",
-            "--timeout", "120", "--out", str(out)]
-    proc = subprocess.run(args, cwd=REPO, env=_env(85), capture_output=True, text=True, timeout=180)
+            "--offspring", "16", "--evaluations", "48", "--seed", "5", "--workers", "2", "--domain-id", str(ros_domain),
+            "--timeout", "300", "--out", str(out)]  # timeouts: safety nets for a hung node
+    proc = subprocess.run(args, cwd=REPO, env=_env(ros_domain), capture_output=True, text=True, timeout=400)
     assert proc.returncode == 0, proc.stderr[-3000:]
     summary = json.loads((out / "summary.json").read_text())
     assert summary["profile"] == "refined"
@@ -186,13 +186,18 @@ class Graph:
     def log(self, name: str) -> str:
         return (self.log_dir / f"{name}.log").read_text(errors="replace")
 
-    def run_generator(self, timeout: float = 90.0) -> None:
+    def run_generator(self, answered: int, timeout: float = 300.0) -> None:
+        """Until the generator has exited and this listener has results for ``answered`` scenarios
+        of the run (the last ones may still be on the way when the generator ends); ``timeout`` is
+        a safety net, not a measure."""
         gen = self.procs["generator"]
         deadline = time.monotonic() + timeout
-        while gen.poll() is None and time.monotonic() < deadline:
+        while (gen.poll() is None or len(self.answered()) < answered) and time.monotonic() < deadline:
             self.node.spin_once(0.05)
         assert gen.poll() == 0, f"generator: exit {gen.poll()}\n{self.log('generator')[-3000:]}"
-        self.node.spin_until(lambda: False, 0.5)  # the last results
+
+    def answered(self) -> set[int]:
+        return {r.scenario_id for r in self.results if r.run_id == GENERATOR["run_id"]}
 
     def close(self) -> None:
         for proc in self.procs.values():
@@ -211,15 +216,17 @@ GENERATOR = dict(problem="thermostat", algorithm="ga", population=8, offspring=8
                  profile="refined", run_id="profile-run", worker_wait=1.0, result_timeout=20.0)
 
 
-def test_a_worker_of_another_profile_gets_no_scenario(tmp_path, monkeypatch):
-    graph = Graph(86, tmp_path / "logs", monkeypatch)
+def test_a_worker_of_another_profile_gets_no_scenario(tmp_path, monkeypatch, ros_domain):
+    graph = Graph(ros_domain, tmp_path / "logs", monkeypatch)
     try:
         for worker, profile in (("w_refined", "refined"), ("w_replication", "replication")):
             graph.start(worker, "sim_nodes.thermostat_sim", worker_id=worker, profile=profile, model="surrogate",
                         min_result_subscribers=2)
         graph.start("generator", "ambiegen_ros.nodes.generator", mode="in_the_loop", min_subscribers=2,
-                    min_workers=1, subscriber_wait=20.0, **GENERATOR)
-        graph.run_generator()
+                    min_workers=1, subscriber_wait=300.0,  # the wait ends when both are matched
+                    worker_timeout=60.0,  # late heartbeats on a busy machine must not open the run to anyone
+                    **GENERATOR)
+        graph.run_generator(answered=16)
     finally:
         graph.close()
     mine = [r for r in graph.results if r.run_id == "profile-run"]
@@ -228,15 +235,15 @@ def test_a_worker_of_another_profile_gets_no_scenario(tmp_path, monkeypatch):
     assert "w_replication scores the 'replication' profile" in graph.log("generator")
 
 
-def test_a_worker_of_another_profile_answers_with_an_error(tmp_path, monkeypatch):
-    graph = Graph(87, tmp_path / "logs", monkeypatch)
+def test_a_worker_of_another_profile_answers_with_an_error(tmp_path, monkeypatch, ros_domain):
+    graph = Graph(ros_domain, tmp_path / "logs", monkeypatch)
     try:
         graph.start("w_replication", "sim_nodes.thermostat_sim", worker_id="w_replication", profile="replication",
                     model="surrogate", min_result_subscribers=1)
         # no worker of its profile: after worker_wait the scenarios are offered to anyone
         graph.start("generator", "ambiegen_ros.nodes.generator", mode="surrogate", min_subscribers=1,
-                    subscriber_wait=3.0, **GENERATOR)
-        graph.run_generator()
+                    subscriber_wait=300.0, **GENERATOR)  # the wait ends when the worker is matched
+        graph.run_generator(answered=1)
     finally:
         graph.close()
     mine = [r for r in graph.results if r.run_id == "profile-run"]

@@ -1,11 +1,13 @@
 """`ambiegen replay`: re-execute a recorded run and compare, and re-publish it byte for byte.
 
-Real processes over DDS; domains 60-63 (ids above 101 fall into Linux's ephemeral port range).
+Real processes over DDS, each test on its own ROS_DOMAIN_ID (``ros_domain``). The recorded run is
+shared read-only: a test that needs files beside it works on a copy, so any order passes.
 """
 from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -28,19 +30,20 @@ def ambiegen(domain: int, *args: str, timeout: float = 150) -> subprocess.Comple
 
 
 @pytest.fixture(scope="module")
-def recorded(tmp_path_factory) -> Path:
+def recorded(tmp_path_factory, module_domains) -> Path:
     out = tmp_path_factory.mktemp("recorded")
-    run = ambiegen(60, "campaign", "--problem", "thermostat", "--algorithm", "ga", "--evaluations", "200",
+    domain = module_domains()
+    run = ambiegen(domain, "campaign", "--problem", "thermostat", "--algorithm", "ga", "--evaluations", "200",
                    "--population", "20", "--offspring", "20", "--seed", "4", "--sim-model", "surrogate",
-                   "--domain-id", "60", "--out", str(out))
+                   "--domain-id", str(domain), "--out", str(out))
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
     return next(out.glob("*.mcap"))
 
 
-def test_replay_execute_reruns_every_scenario_and_reports_no_change(recorded, tmp_path):
+def test_replay_execute_reruns_every_scenario_and_reports_no_change(recorded, tmp_path, ros_domain):
     report_path, new_log = tmp_path / "report.json", tmp_path / "new.mcap"
-    run = ambiegen(61, "replay", str(recorded), "--execute", "--workers", "1", "--sim-model", "surrogate",
-                   "--record", str(new_log), "--report", str(report_path), "--domain-id", "61")
+    run = ambiegen(ros_domain, "replay", str(recorded), "--execute", "--workers", "1", "--sim-model", "surrogate",
+                   "--record", str(new_log), "--report", str(report_path), "--domain-id", str(ros_domain))
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
     report = json.loads(report_path.read_text())
     old = summarize(recorded)
@@ -55,11 +58,11 @@ def test_replay_execute_reruns_every_scenario_and_reports_no_change(recorded, tm
     assert new["results_received"] == 10 and new["unresolved"] == []
 
 
-def test_replay_execute_with_another_model_reports_the_changes(recorded, tmp_path):
+def test_replay_execute_with_another_model_reports_the_changes(recorded, tmp_path, ros_domain):
     """A 'new SUT version': the full-model thermostat instead of the surrogate."""
     report_path = tmp_path / "report.json"
-    run = ambiegen(62, "replay", str(recorded), "--execute", "--workers", "1", "--sim-model", "full",
-                   "--report", str(report_path), "--domain-id", "62")
+    run = ambiegen(ros_domain, "replay", str(recorded), "--execute", "--workers", "1", "--sim-model", "full",
+                   "--report", str(report_path), "--domain-id", str(ros_domain))
     assert run.returncode == 0, run.stderr[-2000:]
     report = json.loads(report_path.read_text())
     assert report["settled"] == 10
@@ -69,14 +72,14 @@ def test_replay_execute_with_another_model_reports_the_changes(recorded, tmp_pat
         assert entry["old"] is not None and entry["new"]["objectives"]
 
 
-def test_replay_publish_sends_the_recorded_bytes(recorded):
+def test_replay_publish_sends_the_recorded_bytes(recorded, monkeypatch, ros_domain):
     """Mode publish: a subscriber receives each recorded scenario message byte for byte."""
     from ambiegen_ros.ros.transport import create_node
 
     with open(recorded, "rb") as fh:
         expected = [m.data for _, _, m in make_reader(fh).iter_messages(topics=[topics.scenarios("thermostat")])]
-    env = dict(os.environ, ROS_DOMAIN_ID="63")
-    os.environ["ROS_DOMAIN_ID"] = "63"
+    env = dict(os.environ, ROS_DOMAIN_ID=str(ros_domain))
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(ros_domain))  # undone after the test (no leftover for others)
     node = create_node("replay_listener", argv=[])
     received: list[bytes] = []
     node.create_subscription(topics.SCENARIO_TYPES["thermostat"], topics.scenarios("thermostat"),
@@ -84,10 +87,10 @@ def test_replay_publish_sends_the_recorded_bytes(recorded):
     proc = subprocess.Popen([sys.executable, "-m", "ambiegen_ros", "replay", str(recorded), "--rate", "0"],
                             cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + 300  # a safety net: the loop ends when every message is in
         while len(received) < len(expected) and time.monotonic() < deadline:
             node.spin_once(0.05)
-        assert proc.wait(timeout=60) == 0
+        assert proc.wait(timeout=120) == 0
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -95,22 +98,23 @@ def test_replay_publish_sends_the_recorded_bytes(recorded):
     assert received == expected
 
 
-def test_replay_never_overwrites_a_report(recorded, tmp_path):
+def test_replay_never_overwrites_a_report(recorded, tmp_path, ros_domain):
     """An explicit --report that exists is refused before anything starts; the default name moves aside."""
     existing = tmp_path / "kept.json"
     existing.write_text("an earlier report\n")
-    run = ambiegen(61, "replay", str(recorded), "--execute", "--report", str(existing), "--domain-id", "61")
+    recorded = Path(shutil.copy2(recorded, tmp_path / recorded.name))  # its default report goes beside it
+    run = ambiegen(ros_domain, "replay", str(recorded), "--execute", "--report", str(existing),
+                   "--domain-id", str(ros_domain))
     assert run.returncode == 2 and "already exists" in run.stderr, run.stderr[-2000:]
     assert existing.read_text() == "an earlier report\n"
 
     default = recorded.with_suffix(".replay.json")
     default.write_text("the first replay's report\n")
-    run = ambiegen(61, "replay", str(recorded), "--execute", "--workers", "1", "--sim-model", "surrogate",
-                   "--domain-id", "61")
+    run = ambiegen(ros_domain, "replay", str(recorded), "--execute", "--workers", "1", "--sim-model", "surrogate",
+                   "--domain-id", str(ros_domain))
     assert run.returncode == 0, run.stderr[-2000:]
     assert default.read_text() == "the first replay's report\n"
     (moved,) = recorded.parent.glob(recorded.stem + ".replay-*.json")
     assert json.loads(moved.read_text())["settled"] == 10
     assert json.loads(run.stdout)["report"] == str(moved)
     moved.unlink()
-    default.unlink()

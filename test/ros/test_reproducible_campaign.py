@@ -8,8 +8,8 @@ get the same F1 bits for each and end with a byte-identical ``suite.json``. With
 workers this catches F1 that depends on batching; with the full models, noise that depends on
 the worker instead of the run's seed and the scenario id.
 
-Each campaign has its own ROS_DOMAIN_ID, 80..83, which no other test uses (ids above 101 fall
-into Linux's ephemeral port range). Budgets are small; every wait is bounded.
+Each campaign has its own ROS_DOMAIN_ID (``module_domains``, test/conftest.py). Budgets are
+small; every wait ends on the campaign's exit, bounded only as a safety net.
 """
 from __future__ import annotations
 
@@ -33,10 +33,10 @@ pytestmark = pytest.mark.skipif(
     os.environ.get("AMBIEGEN_TRANSPORT", "auto") == "rclpy", reason="these tests drive the DDS backend"
 )
 
-# sim model: (search options, {workers: (domain id, max in flight)})
+# sim model: (search options, {workers: max in flight})
 CASES = {
-    "surrogate": (["--population", "20", "--offspring", "20", "--evaluations", "300"], {1: (80, 64), 3: (81, 2)}),
-    "full": (["--population", "10", "--offspring", "10", "--evaluations", "60"], {1: (82, 64), 3: (83, 2)}),
+    "surrogate": (["--population", "20", "--offspring", "20", "--evaluations", "300"], {1: 64, 3: 2}),
+    "full": (["--population", "10", "--offspring", "10", "--evaluations", "60"], {1: 64, 3: 2}),
 }
 
 
@@ -44,7 +44,7 @@ def start_campaign(out: Path, sim_model: str, options: list[str], workers: int, 
     args = [
         sys.executable, "-m", "ambiegen_ros", "campaign", "--problem", "thermostat", "--algorithm", "ga",
         "--mode", "in_the_loop", "--seed", "3", "--sim-model", sim_model, *options, "--workers", str(workers),
-        "--max-in-flight", str(in_flight), "--domain-id", str(domain), "--result-timeout", "60", "--timeout", "240",
+        "--max-in-flight", str(in_flight), "--domain-id", str(domain), "--result-timeout", "60", "--timeout", "600",  # safety nets
         "--out", str(out),
     ]
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED="1")
@@ -65,16 +65,17 @@ def read_run(out: Path) -> dict:
 
 
 @pytest.fixture(scope="module")
-def campaigns(tmp_path_factory):
+def campaigns(tmp_path_factory, module_domains):
     """All four campaigns at once (each on its own domain): {(sim model, workers): run}."""
     root = tmp_path_factory.mktemp("same_seed")
     procs = {}
     for sim_model, (options, runs) in CASES.items():
-        for w, (domain, in_flight) in runs.items():
-            procs[sim_model, w] = start_campaign(root / f"{sim_model}_w{w}", sim_model, options, w, domain, in_flight)
+        for w, in_flight in runs.items():
+            procs[sim_model, w] = start_campaign(root / f"{sim_model}_w{w}", sim_model, options, w, module_domains(),
+                                                 in_flight)
     try:
         for key, proc in procs.items():
-            _, err = proc.communicate(timeout=300)
+            _, err = proc.communicate(timeout=700)
             assert proc.returncode == 0, f"{key}: exit {proc.returncode}\n{err[-3000:]}"
     finally:
         for proc in procs.values():

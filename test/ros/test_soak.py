@@ -2,20 +2,18 @@
 
 ``test_soak_campaign`` runs ``bench/soak.py``'s campaign (an in-the-loop thermostat campaign,
 4 sim workers, recorder, generator as real subprocesses over real DDS) with the node RSS sampled
-every second and applies the bench's checks: nothing lost between the generator and the MCAP
-log, every node's RSS flat after warm-up (last quarter < 10 % above the first), results/s and
-the nodes' CPU time per result flat (here with a generous tolerance: the machine is shared and
-CI timing varies). The default size, 10,000 evaluations, took 57-166 s here with other jobs
-loading the 2 cores (load average 20-40; the issue's 20,000 took 107-171 s);
-``AMBIEGEN_SOAK_EVALUATIONS=20000`` gives the issue's size. The 200,000-evaluation figures are in
-``bench/results/soak.json``.
+every 0.2 s and asserts what must hold on any machine, however busy (``soak.invariant_checks``):
+nothing lost between the generator and the MCAP log, every scenario answered, every node's RSS
+flat after warm-up (last quarter < 10 % above the first). Speed is not asserted: results/s and
+CPU per result are figures of ``bench/soak.py`` (``bench/results/soak.json``).
+``AMBIEGEN_SOAK_EVALUATIONS=20000`` gives the issue's size (default 10,000).
 
 ``test_remote_execution_keeps_only_open_scenarios`` pins the leak that soak found: the generator
 kept every scenario, outcome and dispatch entry of a run, about 3.6 KB per evaluation (+25 % RSS
 in 20,000 evaluations). Now it keeps a generation's worth at most; this checks it exactly, on a
 real node, without waiting for RSS to show it.
 
-ROS_DOMAIN_IDs: 2 (soak campaign) and 3 (the in-process node); no other test uses them.
+Each test its own ROS_DOMAIN_ID (``ros_domain``, test/conftest.py).
 """
 from __future__ import annotations
 
@@ -41,22 +39,25 @@ pytestmark = pytest.mark.skipif(
     os.environ.get("AMBIEGEN_TRANSPORT", "auto") == "rclpy", reason="these tests drive the DDS backend"
 )
 
-SOAK_DOMAIN, NODE_DOMAIN = 2, 3
 EVALUATIONS = int(os.environ.get("AMBIEGEN_SOAK_EVALUATIONS", "10000"))
-THROUGHPUT_TOLERANCE = 0.6  # last quarter's rate and CPU per result within 60 % of the first's: only a collapse fails
+# RSS sampled at every campaign progress tick (0.2 s): dozens per quarter even on a machine ten
+# times faster than this one; too few samples is reported by invariant_checks, never passed
+SAMPLE_PERIOD = 0.2
+# Scenarios in flight per worker: at most 8 (16 with re-sends) keeps every worker batch within the
+# thermostat's SCALAR_BATCH, so no worker loads numba mid-run. That load is a one-off ~120 MB step
+# whose moment depends on how busy the machine is (when a worker first gets a big batch); it would
+# fall in any quarter and read as growth. The bench runs 64 in flight and reports it as it comes.
+MAX_IN_FLIGHT = 8
 
 
-def test_soak_campaign(tmp_path, monkeypatch):
+def test_soak_campaign(tmp_path, monkeypatch, ros_domain):
     import soak
 
     monkeypatch.chdir(REPO)  # node subprocesses (`python -m ...`) import this tree
     monkeypatch.delenv("AMBIEGEN_TRANSPORT", raising=False)
-    started = time.monotonic()
-    figures = soak.run_soak(tmp_path / "run", EVALUATIONS, workers=4, domain=SOAK_DOMAIN, sample_period=1.0,
-                            window=2.0, timeout=600.0)
-    took = time.monotonic() - started
-    soak.print_summary(figures)  # shown with -s, and on failure
-    print(f"test-sized soak: {EVALUATIONS} evaluations in {took:.0f} s")
+    figures = soak.run_soak(tmp_path / "run", EVALUATIONS, workers=4, domain=ros_domain, sample_period=SAMPLE_PERIOD,
+                            window=2.0, max_in_flight=MAX_IN_FLIGHT, timeout=900.0)  # timeout: a safety net for a hung node, not a measure
+    soak.print_summary(figures)  # figures, shown with -s and on failure; never asserted
     m = figures["messages"]
     # the counts come from three places: the budget, the generator's status, the MCAP read back
     assert m["evaluations_asked"] == m["generator_evaluations"] == EVALUATIONS, m
@@ -65,14 +66,14 @@ def test_soak_campaign(tmp_path, monkeypatch):
     # is an answer, not a loss; lost = published without a result record in the log
     assert m["lost"] == 0 and m["unresolved"] == 0, m
     assert set(figures["rss"]) == {"recorder", "generator", *(f"thermostat_sim_{k}" for k in range(4))}
-    assert soak.soak_checks(figures, throughput_tolerance=THROUGHPUT_TOLERANCE) == []
+    assert soak.invariant_checks(figures) == []
 
 
 @pytest.fixture
-def node(monkeypatch):
+def node(monkeypatch, ros_domain):
     from ambiegen_ros.ros.transport import create_node
 
-    monkeypatch.setenv("ROS_DOMAIN_ID", str(NODE_DOMAIN))
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(ros_domain))
     monkeypatch.delenv("AMBIEGEN_TRANSPORT", raising=False)
     n = create_node("soak_generator", argv=["soak_generator"])
     yield n

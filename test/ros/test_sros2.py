@@ -21,7 +21,6 @@ import pytest  # noqa: E402
 
 from ambiegen_ros.ros.transport import dds_backend  # noqa: E402
 
-DDS_DOMAIN = 9
 ENFORCE = {"ROS_SECURITY_ENABLE": "true", "ROS_SECURITY_STRATEGY": "Enforce"}
 needs_dds = pytest.mark.skipif(not dds_backend.is_available(), reason="cyclonedds is not installed")
 
@@ -36,7 +35,7 @@ def _env(domain: int, **extra: str) -> dict[str, str]:
 
 # --- the DDS backend ---------------------------------------------------------------------------------
 @needs_dds
-def test_pypi_cyclonedds_has_no_dds_security():
+def test_pypi_cyclonedds_has_no_dds_security(ros_domain):
     """The measurement behind the refusal: no plugins in the wheel, and its config rejects <Security>."""
     import cyclonedds
 
@@ -49,28 +48,28 @@ def test_pypi_cyclonedds_has_no_dds_security():
         "<IdentityCA>file:/x</IdentityCA><IdentityCertificate>file:/x</IdentityCertificate>"
         "<PrivateKey>file:/x</PrivateKey></Authentication></Security></Domain></CycloneDDS>'\n"
         "try:\n    Domain(%d, cfg)\nexcept Exception as e:\n    print('REFUSED', type(e).__name__)\nelse:\n    print('ACCEPTED')\n"
-    ) % DDS_DOMAIN
-    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120, env=_env(DDS_DOMAIN))
+    ) % ros_domain
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120, env=_env(ros_domain))
     assert "REFUSED" in out.stdout, out.stdout + out.stderr
     assert "Security: unknown element" in out.stderr  # Cyclone's own words: built without DDS_HAS_SECURITY
 
 
 @needs_dds
-def test_dds_node_refuses_to_start_when_security_is_enforced(tmp_path):
+def test_dds_node_refuses_to_start_when_security_is_enforced(tmp_path, ros_domain):
     """A real worker process exits with status 2 and a clear message instead of running insecure."""
     args = [sys.executable, "-m", "sim_nodes.thermostat_sim", "--ros-args", "-p", "model:=surrogate"]
     out = subprocess.run(args, cwd=REPO, capture_output=True, text=True, timeout=180,
-                         env=_env(DDS_DOMAIN, AMBIEGEN_TRANSPORT="dds", **ENFORCE))
+                         env=_env(ros_domain, AMBIEGEN_TRANSPORT="dds", **ENFORCE))
     assert out.returncode == 2, out.stdout + out.stderr
     assert "refusing to start" in out.stderr and "ROS_SECURITY_STRATEGY=Enforce" in out.stderr, out.stderr
     assert "executing thermostat scenarios" not in out.stdout + out.stderr
 
 
 @needs_dds
-def test_dds_node_warns_when_security_is_only_permissive(monkeypatch, capsys):
+def test_dds_node_warns_when_security_is_only_permissive(monkeypatch, capsys, ros_domain):
     from ambiegen_ros.ros.transport import create_node
 
-    monkeypatch.setenv("ROS_DOMAIN_ID", str(DDS_DOMAIN))
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(ros_domain))
     monkeypatch.setenv("ROS_SECURITY_ENABLE", "true")
     monkeypatch.setenv("ROS_SECURITY_STRATEGY", "Permissive")
     node = create_node("permissive", argv=["x"], backend="dds")

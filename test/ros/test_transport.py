@@ -1,5 +1,6 @@
 """The transport seam: parameter parsing, naming, QoS tables, backend choice, and the DDS backend
-between real processes on real DDS (each test its own ROS_DOMAIN_ID in 10..29; ids above 101 fall into Linux's ephemeral port range).
+between real processes on real DDS (each test its own ROS_DOMAIN_ID, ``ros_domain``). Every wait
+ends on an event; ``PATIENCE`` bounds it as a safety net, and no test asserts how fast anything is.
 
 This file is also the helper program for its multi-process tests:
 ``python test_transport.py ROLE ARGS...`` runs one node role (see ``_ROLES``).
@@ -16,6 +17,7 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
+PATIENCE = 120.0  # s: the bound of every wait that ends on an event (a hung child, not a slow machine)
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
@@ -92,7 +94,7 @@ def _role_sub(out: str) -> int:
         node.create_subscription(typename, topic, raw(topic), STREAM, raw=True)
     print("READY", flush=True)
     total = len(STRINGS) + 2
-    node.spin_until(lambda: len(got["raw"]) >= total and len(got["typed"]) >= total, 15.0)
+    node.spin_until(lambda: len(got["raw"]) >= total and len(got["typed"]) >= total, PATIENCE)
     node.shutdown()
     Path(out).write_text(json.dumps(got))
     return 0
@@ -103,13 +105,13 @@ def _role_pub(out: str) -> int:
     reg = node._registry
     chat = node.create_publisher(STRING, "chat", STREAM)
     grid = node.create_publisher(GRID, "/grid", STREAM)
-    report = {"matched": [node.wait_for_subscribers(chat, 2, 15.0), node.wait_for_subscribers(grid, 2, 15.0)]}
+    report = {"matched": [node.wait_for_subscribers(chat, 2, PATIENCE), node.wait_for_subscribers(grid, 2, PATIENCE)]}
     for s in STRINGS:
         chat.publish(node.new_message(STRING, data=s))
     for i in range(2):
         grid.publish(make_grid(reg, i))
     # stay until the subscriber has everything and leaves (reliable delivery needs us alive)
-    deadline = time.monotonic() + 15.0
+    deadline = time.monotonic() + PATIENCE
     while (chat.subscription_count() or grid.subscription_count()) and time.monotonic() < deadline:
         time.sleep(0.01)
     report["left"] = chat.subscription_count() == 0
@@ -139,7 +141,7 @@ def _role_late(out: str) -> int:
     got = []
     node.create_subscription(GRID, "/demo/latched_map", lambda d, t: got.append(bytes(d).hex()),
                              LATCHED, raw=True)
-    node.spin_until(lambda: len(got) >= 1, 10.0)
+    node.spin_until(lambda: len(got) >= 1, PATIENCE)
     node.spin_until(lambda: False, 0.3)  # would a second (older) sample arrive?
     node.shutdown()
     Path(out).write_text(json.dumps(got))
@@ -160,7 +162,7 @@ def _spawn(role: str, domain: int, *args: str) -> subprocess.Popen:
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-def _wait_ready(proc: subprocess.Popen, timeout: float = 15.0) -> None:
+def _wait_ready(proc: subprocess.Popen, timeout: float = PATIENCE) -> None:
     box: list[str] = []
     t = threading.Thread(target=lambda: box.append(proc.stdout.readline()), daemon=True)
     t.start()
@@ -170,7 +172,7 @@ def _wait_ready(proc: subprocess.Popen, timeout: float = 15.0) -> None:
         raise AssertionError(f"child not ready: {box!r} {proc.stderr.read()[-2000:]}")
 
 
-def _finish(proc: subprocess.Popen, timeout: float = 20.0) -> None:
+def _finish(proc: subprocess.Popen, timeout: float = PATIENCE) -> None:
     try:
         _, err = proc.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
@@ -523,7 +525,8 @@ def test_dds_names_and_qos_mapping(monkeypatch):
     assert D.dds_topic_to_ros("ros_discovery_info") is None and D.dds_topic_to_ros("rq/x") is None
     assert D.dds_type_to_ros("nav_msgs::msg::dds_::OccupancyGrid_") == GRID
     q = D.dds_qos(LATCHED, "RIHS01_ab")
-    assert q[Policy.Reliability] == Policy.Reliability.Reliable(max_blocking_time=D.dds_infinity)
+    from cyclonedds.internal import dds_infinity
+    assert q[Policy.Reliability] == Policy.Reliability.Reliable(max_blocking_time=dds_infinity)
     assert q[Policy.Durability] == Policy.Durability.TransientLocal
     assert q[Policy.History] == Policy.History.KeepLast(1)
     assert q[Policy.DurabilityService].history == Policy.History.KeepLast(1)
@@ -554,11 +557,11 @@ def test_dds_names_and_qos_mapping(monkeypatch):
 # DDS backend in one process
 
 
-def test_node_parameters_from_argv_and_overrides(dds_env, tmp_path):
+def test_node_parameters_from_argv_and_overrides(dds_env, tmp_path, ros_domain):
     f = tmp_path / "p.yaml"
     f.write_text("/**:\n  ros__parameters:\n    pop: 30\n    name: from_file\n")
     argv = ["prog", "--ros-args", "--params-file", str(f), "-p", "rate:=2", "-r", "__ns:=/demo"]
-    node = dds_env(10, "gen", argv=argv, parameter_overrides={"seed": 7})
+    node = dds_env(ros_domain, "gen", argv=argv, parameter_overrides={"seed": 7})
     assert node.fully_qualified_name == "/demo/gen"
     assert node.declare_parameter("pop", 10) == 30
     assert node.declare_parameter("rate", 1.0) == 2.0
@@ -573,24 +576,24 @@ def test_node_parameters_from_argv_and_overrides(dds_env, tmp_path):
         node.declare_parameter("pop", 10)
 
 
-def test_timers_spin_once_and_shutdown(dds_env):
-    node = dds_env(11)
+def test_timers_spin_once_and_shutdown(dds_env, ros_domain):
+    node = dds_env(ros_domain)
     ticks, other = [], []
     main = threading.get_ident()
     t = node.create_timer(0.02, lambda: ticks.append((time.monotonic(), threading.get_ident() == main)))
     node.create_timer(0.5, lambda: other.append(1))
     t0 = time.monotonic()
-    node.spin_until(lambda: len(ticks) >= 5, 2.0)
+    node.spin_until(lambda: len(ticks) >= 5, PATIENCE)
     assert len(ticks) == 5 and all(ok for _, ok in ticks)
-    span = ticks[-1][0] - ticks[0][0]  # 4 periods of 20 ms
-    assert 0.06 < span < 0.3, span
+    span = ticks[-1][0] - ticks[0][0]  # 4 periods of 20 ms at least (a busy machine only adds)
+    assert span > 0.06, span
     t.cancel()
     assert t.is_canceled()
     n = len(ticks)
     start = time.monotonic()
-    node.spin_once(0.1)  # nothing due: returns after the timeout
-    assert 0.08 < time.monotonic() - start < 0.3 and len(ticks) == n
-    assert time.monotonic() - t0 < 1.0 and not other
+    node.spin_once(0.1)  # nothing due: returns after the timeout, not before
+    assert time.monotonic() - start > 0.08 and len(ticks) == n
+    assert not other or time.monotonic() - t0 >= 0.5  # the 0.5 s timer never fires early
     node.shutdown()
     node.shutdown()
     assert not node.ok()
@@ -598,18 +601,18 @@ def test_timers_spin_once_and_shutdown(dds_env):
         node.create_timer(1.0, lambda: None)
 
 
-def test_in_process_pubsub_raw_and_bad_payload(dds_env):
-    node = dds_env(12)
+def test_in_process_pubsub_raw_and_bad_payload(dds_env, ros_domain):
+    node = dds_env(ros_domain)
     got, raw = [], []
     pub = node.create_publisher(STRING, "/t", DEFAULT)
     assert not node.wait_for_subscribers(pub, 1, 0.2)  # nobody there yet
     node.create_subscription(STRING, "t", lambda m: got.append(m.data), DEFAULT)
     node.create_subscription(STRING, "/t", lambda d, ts: raw.append(bytes(d)), DEFAULT, raw=True)
-    assert node.wait_for_subscribers(pub, 2, 5.0)
+    assert node.wait_for_subscribers(pub, 2, PATIENCE)
     pub.publish(node.new_message(STRING, data="a"))
     cdr = node._registry.serialize(node.new_message(STRING, data="b"), STRING)
     pub.publish_raw(cdr)
-    node.spin_until(lambda: len(got) == 2 and len(raw) == 2, 3.0)
+    node.spin_until(lambda: len(got) == 2 and len(raw) == 2, PATIENCE)
     assert got == ["a", "b"] and raw[1] == cdr
     with pytest.raises(transport.TransportError, match="layout"):
         pub.publish_raw(b"\x00\x01\x00\x00\xff\xff\xff\x7f")  # string length beyond the payload
@@ -619,9 +622,9 @@ def test_in_process_pubsub_raw_and_bad_payload(dds_env):
         node.create_publisher("std_msgs/msg/Nope", "/n", DEFAULT)
 
 
-def test_every_known_message_type_round_trips(dds_env):
+def test_every_known_message_type_round_trips(dds_env, ros_domain):
     """Each type's mirrored DDS struct must accept types.py's CDR (the C layer validates it)."""
-    node = dds_env(16)
+    node = dds_env(ros_domain)
     reg = node._registry
     names = [t for t in reg.store.fielddefs if "/msg/" in t]
     assert len(names) > 150 and all(t in names for t in reg.own_types)
@@ -632,7 +635,7 @@ def test_every_known_message_type_round_trips(dds_env):
         pub = node.create_publisher(t, f"/all/t{i}", DEFAULT)
         sent[t] = reg.serialize(reg.new(t), t)
         pub.publish_raw(sent[t])
-    node.spin_until(lambda: len(got) == len(sent), 10.0)
+    node.spin_until(lambda: len(got) == len(sent), PATIENCE)
     assert [t for t in sent if got.get(t) != sent[t]] == []
 
 
@@ -640,11 +643,11 @@ def test_every_known_message_type_round_trips(dds_env):
 # DDS backend between processes
 
 
-def test_two_processes_exchange_typed_and_raw_bytes_exactly(tmp_path):
+def test_two_processes_exchange_typed_and_raw_bytes_exactly(tmp_path, ros_domain):
     from ambiegen_ros.ros import types
-    sub = _spawn("sub", 13, str(tmp_path / "sub.json"))
+    sub = _spawn("sub", ros_domain, str(tmp_path / "sub.json"))
     _wait_ready(sub)
-    pub = _spawn("pub", 13, str(tmp_path / "pub.json"))
+    pub = _spawn("pub", ros_domain, str(tmp_path / "pub.json"))
     _finish(sub)
     _finish(pub)
     report = json.loads((tmp_path / "pub.json").read_text())
@@ -658,23 +661,23 @@ def test_two_processes_exchange_typed_and_raw_bytes_exactly(tmp_path):
     assert got["threads"] and all(got["threads"])  # callbacks ran on the spinning thread
 
 
-def test_latched_late_joiner_discovery_and_sigint(tmp_path, dds_env):
+def test_latched_late_joiner_discovery_and_sigint(tmp_path, dds_env, ros_domain):
     from ambiegen_ros.ros import types
     reg = types.get_registry()
-    latched = _spawn("latched", 14, str(tmp_path / "final.json"))
+    latched = _spawn("latched", ros_domain, str(tmp_path / "final.json"))
     try:
         _wait_ready(latched)
-        late = _spawn("late", 14, str(tmp_path / "late.json"))
+        late = _spawn("late", ros_domain, str(tmp_path / "late.json"))
         _finish(late)
         got = json.loads((tmp_path / "late.json").read_text())
         assert got == [reg.serialize(make_grid(reg, 2), GRID).hex()]  # only the last, depth 1
 
-        node = dds_env(14, "observer")
-        node.spin_until(lambda: ("/demo/latched_map", [GRID]) in node.topic_names_and_types(), 5.0)
+        node = dds_env(ros_domain, "observer")
+        node.spin_until(lambda: ("/demo/latched_map", [GRID]) in node.topic_names_and_types(), PATIENCE)
         assert ("/demo/latched_map", [GRID]) in node.topic_names_and_types()
         info = []
         node.spin_until(lambda: bool(info.extend(node.publishers_info("/demo/latched_map"))
-                                     or (info and info[-1].node_name)), 3.0)
+                                     or (info and info[-1].node_name)), PATIENCE)
         ep = info[-1]
         assert (ep.typename, ep.qos, ep.keep_all) == (GRID, LATCHED, False)
         assert ep.type_hash == reg.type_hash(GRID)
@@ -682,8 +685,8 @@ def test_latched_late_joiner_discovery_and_sigint(tmp_path, dds_env):
 
         t0 = time.monotonic()
         latched.send_signal(signal.SIGINT)
-        _finish(latched, timeout=5.0)
-        assert time.monotonic() - t0 < 2.0
+        _finish(latched)  # ends on the signal; how fast is not checked
+        print(f"SIGINT to exit: {time.monotonic() - t0:.2f} s")
         final = json.loads((tmp_path / "final.json").read_text())
         assert final["ok_after"] is False and final["ticks"] > 0
     finally:
@@ -691,14 +694,14 @@ def test_latched_late_joiner_discovery_and_sigint(tmp_path, dds_env):
             latched.kill()
 
 
-def test_sigterm_ends_spin_cleanly(tmp_path):
-    proc = _spawn("latched", 15, str(tmp_path / "final.json"))
+def test_sigterm_ends_spin_cleanly(tmp_path, ros_domain):
+    proc = _spawn("latched", ros_domain, str(tmp_path / "final.json"))
     try:
         _wait_ready(proc)
         t0 = time.monotonic()
         proc.send_signal(signal.SIGTERM)
-        _finish(proc, timeout=5.0)
-        assert time.monotonic() - t0 < 2.0
+        _finish(proc)  # ends on the signal; how fast is not checked
+        print(f"SIGTERM to exit: {time.monotonic() - t0:.2f} s")
         assert json.loads((tmp_path / "final.json").read_text())["ok_after"] is False
     finally:
         if proc.poll() is None:

@@ -20,7 +20,7 @@ import pytest
 from ambiegen_ros.core.attributes import ScenarioError
 from ambiegen_ros.problems import get_problem
 from ambiegen_ros.sims import car, robot, room
-from ambiegen_ros.sims.full_model import full_model_executor
+from ambiegen_ros.sims.full_model import FullModelExecutor, full_model_executor
 from ambiegen_ros.sims.outcome import FAILURE_KINDS
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -472,6 +472,41 @@ def test_unknown_or_bad_options_are_named(problems):
         full_model_executor(problems["vehicle"], oob_tolerance=1.5)
 
 
+@pytest.mark.parametrize("problem, pair, expected", [
+    # a wrong type used to reach the config's range checks: "'>' not supported between 'str' and 'int'"
+    ("robot", "cruise_speed=abc", "option.cruise_speed: expected a number, got 'abc' (allowed: finite numbers; default 0.3)"),
+    ("robot", "cruise_speed=-1", "option.cruise_speed: value -1: must be > 0"),
+    ("robot", "cruise_speed=0.9", "option.cruise_speed: value 0.9: above max_speed (allowed: <= 0.8)"),
+    ("robot", "cruise_speed=0.05", "option.nd_min_speed: minimum speeds above the maximum ones (with cruise_speed=0.05)"),
+    ("robot", "nd_sectors=4", "option.nd_sectors: value 4: a multiple of 4, at least 8"),
+    ("robot", "beams=2.5", "option.beams: expected an integer, got 2.5 (allowed: integers; default 181)"),
+    ("robot", "run_invalid=1", "option.run_invalid: expected true or false, got 1 (allowed: true|false; default false)"),
+    ("robot", "planner=1", "option.planner: unknown planner '1' (allowed: nd|gap)"),
+    ("robot", "engine=null", 'option.engine: expected text, got None (allowed: text; default "auto")'),
+    ("vehicle", "controller=[1]", 'option.controller: expected text, got [1] (allowed: text; default "pure_pursuit")'),
+    ("vehicle", "oob_tolerance=1.5", "option.oob_tolerance: value 1.5: must be a fraction (allowed: [0, 1])"),
+    ("thermostat", "dt=true", "option.dt: expected a number, got True (allowed: finite numbers; default 10.0)"),
+    ("thermostat", "control_period=65", "option.control_period: value 65: must be a multiple of dt (allowed: k * 10 s)"),
+])
+def test_every_set_value_error_names_option_value_and_allowed(problems, pair, problem, expected):
+    """`--set` values reach the executor as parse_options gives them; each error is one such line."""
+    from ambiegen_ros.sims.options import parse_options
+
+    with pytest.raises(ScenarioError) as err:
+        full_model_executor(problems[problem], **parse_options([pair]))
+    assert str(err.value) == expected
+
+
+def test_good_set_values_are_taken(problems):
+    from ambiegen_ros.sims.options import parse_options
+
+    ex = full_model_executor(problems["robot"], **parse_options(["beams=91.0", "route_diagonal=null", "planner=gap"]))
+    assert ex.config.beams == 91 and isinstance(ex.config.beams, int)
+    assert ex.config.route_diagonal is None and ex.config.planner == "gap"
+    with pytest.raises(ScenarioError, match="option.cruise_speed: expected a number"):  # with a config too
+        FullModelExecutor(problems["robot"], ex.config, cruise_speed="abc")
+
+
 # --- CLI and plots -----------------------------------------------------------------------------
 def write(tmp_path, name, data) -> str:
     path = tmp_path / name
@@ -480,7 +515,7 @@ def write(tmp_path, name, data) -> str:
 
 
 def test_execute_json_shape_and_bad_input(tmp_path, capsys, problems):
-    from ambiegen_ros.sims.cli import main
+    from ambiegen_ros.cli import main
 
     p = problems["vehicle"]
     good = write(tmp_path, "hairpin.json", road(p, HAIRPIN).to_dict())

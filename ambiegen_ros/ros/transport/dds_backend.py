@@ -30,10 +30,11 @@ from ambiegen_ros.ros.qos import Qos
 
 from .base import (EndpointInfo, Node, Publisher, Subscription, Timer, TransportError)
 from .discovery import check_peers_resolve, cyclone_fragment, options_from_env
+from .dds_wire import (IdlMirror, _types_module, dds_qos, dds_topic_to_ros,  # noqa: F401 (re-exported)
+                       dds_type_to_ros, pad_cdr, qos_from_dds, ros_topic_to_dds, unpad_cdr)
 
 try:  # import-time failure is reported by available_backends()/create_node, not here
     import cyclonedds  # noqa: F401
-    import cyclonedds.idl.types as _idl_t
     from cyclonedds._clayer import ddspy_take, ddspy_write
     from cyclonedds.builtin import (BuiltinDataReader, BuiltinTopicDcpsPublication,
                                     BuiltinTopicDcpsSubscription)
@@ -41,8 +42,6 @@ try:  # import-time failure is reported by available_backends()/create_node, not
                                  ViewState, WaitSet)
     from cyclonedds.core import Qos as _DdsQos
     from cyclonedds.domain import Domain, DomainParticipant
-    from cyclonedds.idl import make_idl_struct
-    from cyclonedds.internal import dds_infinity
     from cyclonedds.pub import DataWriter
     from cyclonedds.sub import DataReader
     from cyclonedds.topic import Topic
@@ -61,15 +60,6 @@ DISCOVERY_TOPIC = "ros_discovery_info"
 DISCOVERY_TYPE = "rmw_dds_common/msg/ParticipantEntitiesInfo"
 WAIT_SLICE_NS = 100_000_000  # bound each wait so Python signal handlers run promptly
 
-_BASE_TYPES = {}
-if IMPORT_ERROR is None:
-    _BASE_TYPES = {
-        "bool": bool, "byte": _idl_t.byte, "char": _idl_t.uint8,
-        "int8": _idl_t.int8, "uint8": _idl_t.uint8, "int16": _idl_t.int16, "uint16": _idl_t.uint16,
-        "int32": _idl_t.int32, "uint32": _idl_t.uint32, "int64": _idl_t.int64, "uint64": _idl_t.uint64,
-        "float32": _idl_t.float32, "float64": _idl_t.float64,
-    }
-
 
 def is_available() -> bool:
     return IMPORT_ERROR is None
@@ -77,161 +67,6 @@ def is_available() -> bool:
 
 def unavailable_reason() -> str:
     return "" if IMPORT_ERROR is None else f"{type(IMPORT_ERROR).__name__}: {IMPORT_ERROR}"
-
-
-# ---------------------------------------------------------------------------------------------
-# names and types
-
-
-def ros_topic_to_dds(fqn: str) -> str:
-    """'/a/b' -> 'rt/a/b' (topics; services would use rq/rr)."""
-    return "rt" + fqn
-
-
-def dds_topic_to_ros(name: str) -> str | None:
-    """'rt/a/b' -> '/a/b'; None for non-topic DDS names (services, ros_discovery_info, ...)."""
-    return name[2:] if name.startswith("rt/") else None
-
-
-def dds_type_to_ros(type_name: str) -> str:
-    """'nav_msgs::msg::dds_::OccupancyGrid_' -> 'nav_msgs/msg/OccupancyGrid'."""
-    parts = [p for p in type_name.split("::") if p != "dds_"]
-    if parts and parts[-1].endswith("_"):
-        parts[-1] = parts[-1][:-1]
-    return "/".join(parts)
-
-
-def _types_module():
-    from ambiegen_ros.ros import types as _types  # written by another module owner
-    return _types
-
-
-class IdlMirror:
-    """Builds (and caches) one ``IdlStruct`` per ROS type mirroring its .msg layout."""
-
-    def __init__(self, registry, dds_type_name: Callable[[str], str]):
-        self._registry = registry
-        self._dds_name = dds_type_name
-        self._fields: dict[str, list] = {}
-        self._classes: dict[str, type] = {}
-        self._lock = threading.Lock()
-
-    def get(self, typename: str) -> type:
-        with self._lock:
-            return self._get(typename)
-
-    def _get(self, typename: str) -> type:
-        cls = self._classes.get(typename)
-        if cls is not None:
-            return cls
-        if typename not in self._fields:
-            self._load(typename)
-        fields = {fname: self._convert(typename, fname, desc) for fname, desc in self._fields[typename]}
-        short = typename.rsplit("/", 1)[-1] + "_"
-        cls = make_idl_struct(short, self._dds_name(typename), fields)
-        self._classes[typename] = cls
-        return cls
-
-    def _load(self, typename: str) -> None:
-        from rosbags.typesys import get_types_from_msg
-        text = self._registry.msgdef(typename)
-        if isinstance(text, tuple):
-            text = text[0]
-        for name, (_consts, fields) in get_types_from_msg(text, typename).items():
-            self._fields.setdefault(name, fields)
-        if typename not in self._fields:
-            raise TransportError(f"message definition of {typename} does not define it")
-
-    def _convert(self, owner: str, fname: str, desc) -> Any:
-        kind, arg = desc
-        kname = getattr(kind, "name", str(kind)).upper()
-        if kname == "BASE":
-            base, bound = arg
-            if base == "string":
-                return _idl_t.bounded_str[bound] if bound else str
-            if base in _BASE_TYPES:
-                return _BASE_TYPES[base]
-            raise TransportError(f"{owner}.{fname}: type {base!r} is not supported by the DDS backend")
-        if kname == "NAME":
-            return self._get(arg)
-        if kname == "ARRAY":
-            sub, length = arg
-            return _idl_t.array[self._convert(owner, fname, sub), length]
-        if kname == "SEQUENCE":
-            sub, bound = arg
-            inner = self._convert(owner, fname, sub)
-            return _idl_t.sequence[inner, bound] if bound else _idl_t.sequence[inner]
-        raise TransportError(f"{owner}.{fname}: unknown field kind {kname}")
-
-
-def pad_cdr(data) -> bytes:
-    """Pad CDR to a multiple of 4 and record the count in the encapsulation options' low bits.
-
-    RTPS carries payloads in 4-byte units, so the receiver sees the padding anyway; announcing
-    it (XTypes 7.6.3.1.2, as Cyclone's and Fast DDS' own serialisers do) lets receivers -- ours
-    included -- recover the exact original bytes.
-    """
-    pad = -len(data) % 4
-    if not pad or len(data) < 4:
-        return data
-    b = bytearray(data)
-    b[3] = (b[3] & 0xFC) | pad
-    b.extend(bytes(pad))
-    return bytes(b)
-
-
-def unpad_cdr(data: bytes) -> bytes:
-    """Inverse of ``pad_cdr``: drop the announced trailing padding and clear the bits."""
-    pad = data[3] & 3
-    if not pad or len(data) - 4 < pad:
-        return data
-    b = bytearray(data[: len(data) - pad])
-    b[3] &= 0xFC
-    return bytes(b)
-
-
-# ---------------------------------------------------------------------------------------------
-# QoS
-
-
-def dds_qos(qos: Qos, type_hash: str = "") -> "_DdsQos":
-    """Endpoint QoS as rmw_cyclonedds_cpp (Jazzy) builds it, plus the REP 2011 type hash."""
-    policies = [
-        Policy.History.KeepLast(max(1, int(qos.depth))),
-        Policy.Reliability.Reliable(max_blocking_time=dds_infinity) if qos.reliable
-        else Policy.Reliability.BestEffort,
-        Policy.DataRepresentation(use_cdrv0_representation=True),
-    ]
-    if qos.transient_local:
-        policies.append(Policy.Durability.TransientLocal)
-        # Cyclone keeps late-joiner history per the durability service, not the writer history.
-        policies.append(Policy.DurabilityService(
-            cleanup_delay=0, history=Policy.History.KeepLast(max(1, int(qos.depth))),
-            max_samples=-1, max_instances=-1, max_samples_per_instance=-1))
-    else:
-        policies.append(Policy.Durability.Volatile)
-    if type_hash:
-        policies.append(Policy.Userdata(f"typehash={type_hash};".encode("ascii")))
-    return _DdsQos(*policies)
-
-
-def qos_from_dds(dq) -> tuple[Qos, bool, str]:
-    """(Qos, keep_all, type_hash) from a discovered endpoint's QoS."""
-    rel = dq[Policy.Reliability] if dq is not None else None
-    dur = dq[Policy.Durability] if dq is not None else None
-    hist = dq[Policy.History] if dq is not None else None
-    ud = dq[Policy.Userdata] if dq is not None else None
-    # DDS defaults when a policy is absent: writers reliable, readers best effort; volatile; keep last 1.
-    reliable = rel is not None and rel != Policy.Reliability.BestEffort
-    transient = dur is not None and dur == Policy.Durability.TransientLocal
-    keep_all = hist is not None and hist == Policy.History.KeepAll
-    depth = getattr(hist, "depth", 1) if hist is not None and not keep_all else (0 if keep_all else 1)
-    type_hash = ""
-    if ud is not None:
-        for item in bytes(ud.data).decode("utf-8", "replace").split(";"):
-            if item.startswith("typehash="):
-                type_hash = item[len("typehash="):]
-    return Qos(reliable=reliable, transient_local=transient, depth=depth), keep_all, type_hash
 
 
 # ---------------------------------------------------------------------------------------------

@@ -1,9 +1,9 @@
 """`ambiegen doctor`: is this machine fit to run AmbieGen-ROS? One line per check.
 
 Checks the transport backend that nodes would use (and why: rclpy's import error, if any), the
-ROS environment (RMW_IMPLEMENTATION, ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE,
-ROS_STATIC_PEERS), every dependency against its minimum (``deps``), whether numba loads, and
-whether an installed ``ambiegen_msgs`` (``share/ambiegen_msgs/msg`` on AMENT_PREFIX_PATH) has the
+ROS environment (RMW_IMPLEMENTATION, ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE: both what it
+gives nodes and what ``ambiegen campaign`` uses, ROS_STATIC_PEERS), every dependency against its
+minimum (``deps``), whether numba loads, and whether an installed ``ambiegen_msgs`` (``share/ambiegen_msgs/msg`` on AMENT_PREFIX_PATH) has the
 message definitions and type hashes our nodes use. Exit status 0 when nothing is broken, 1 when
 something is (warnings alone keep 0); ``--json`` prints the same as one JSON object.
 
@@ -12,10 +12,8 @@ It imports nothing that a broken environment could break before the checks run, 
 """
 from __future__ import annotations
 
-import argparse
 import json
 import os
-import sys
 import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -37,8 +35,8 @@ class Check:
 
 def check_backend() -> Check:
     """The backend ``create_node`` would pick, and why the other one is not used."""
-    from .ros import transport
-    from .ros.transport import dds_backend, rclpy_backend
+    from ..ros import transport
+    from ..ros.transport import dds_backend, rclpy_backend
 
     env_choice = os.environ.get(transport.ENV_VAR, "").strip()
     data: dict[str, Any] = {
@@ -74,8 +72,8 @@ def check_rmw(backend: str | None) -> Check:
 
 
 def check_domain() -> Check:
-    from .ros.transport import TransportError
-    from .ros.transport.dds_backend import domain_id_from_env
+    from ..ros.transport import TransportError
+    from ..ros.transport.dds_backend import domain_id_from_env
 
     raw = os.environ.get("ROS_DOMAIN_ID", "").strip()
     try:
@@ -90,8 +88,8 @@ def check_domain() -> Check:
 
 
 def check_discovery() -> list[Check]:
-    from .ros.transport import TransportError
-    from .ros.transport.discovery import (LOCALHOST_ONLY_VAR, PEERS_VAR, RANGE_VAR, check_peers_resolve,
+    from ..ros.transport import TransportError
+    from ..ros.transport.discovery import (LOCALHOST_ONLY_VAR, PEERS_VAR, RANGE_VAR, check_peers_resolve,
                                           options_from_env)
 
     raw_range = os.environ.get(RANGE_VAR, "").strip()
@@ -102,7 +100,13 @@ def check_discovery() -> list[Check]:
     shown = options.range + ("" if raw_range else " (unset: SUBNET)")
     if os.environ.get(LOCALHOST_ONLY_VAR, "").strip() == "1":
         shown += f" ({LOCALHOST_ONLY_VAR}=1 wins; it is deprecated in Jazzy)"
-    checks = [Check("discovery_range", OK, shown, {"range": options.range})]
+    campaign = campaign_range()
+    data: dict[str, Any] = {"range": options.range, "campaign_range": campaign}
+    # the two differ by design (a campaign defaults to LOCALHOST): say both, so neither surprises
+    shown = f"{shown} for nodes started by hand or by ros2 launch; `ambiegen campaign` uses {campaign or '?'}"
+    if campaign and not raw_range and campaign == "LOCALHOST":
+        shown += " (its default; --discovery-range subnet for workers on other machines)"
+    checks = [Check("discovery_range", OK, shown, data)]
     peers = list(options.static_peers)
     raw_peers = os.environ.get(PEERS_VAR, "").strip()
     if not peers:
@@ -118,8 +122,18 @@ def check_discovery() -> list[Check]:
     return checks
 
 
+def campaign_range() -> str | None:
+    """The discovery range ``ambiegen campaign`` gives its nodes here without --discovery-range
+    (``campaign.discovery_scope``: the environment's if set, else LOCALHOST); None if unknown."""
+    try:
+        from ..campaign import discovery_scope
+    except ImportError:  # a broken dependency is the dependency checks' to report
+        return None
+    return discovery_scope(None, dict(os.environ))
+
+
 def check_dependencies() -> list[Check]:
-    from . import deps
+    from .. import deps
 
     out = []
     for s in deps.statuses():
@@ -136,7 +150,7 @@ def check_dependencies() -> list[Check]:
 
 
 def check_numba() -> Check:
-    from .core import accel
+    from ..core import accel
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # the error is this check's detail
@@ -149,7 +163,7 @@ def check_numba() -> Check:
 
 def installed_msgs_dir() -> Path | None:
     """``share/ambiegen_msgs/msg`` of the first AMENT_PREFIX_PATH entry that has .msg files."""
-    from .ros.types import MSGS_PACKAGE
+    from ..ros.types import MSGS_PACKAGE
 
     for prefix in filter(None, os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep)):
         path = Path(prefix) / "share" / MSGS_PACKAGE / "msg"
@@ -172,7 +186,7 @@ def _rosidl_hash(msg_dir: Path, typename: str) -> str | None:
 
 def check_messages() -> Check:
     """Do our message definitions match the installed ambiegen_msgs (names, text, type hashes)?"""
-    from .ros.types import TypeRegistry, get_registry
+    from ..ros.types import TypeRegistry, get_registry
 
     installed = installed_msgs_dir()
     if installed is None:
@@ -235,29 +249,3 @@ def report(checks: list[Check], as_json: bool = False) -> int:
             print(f"[{c.status:>4}] {c.name:<{width}}  {c.detail}")
         print("all fine" if not broken else f"{sum(c.status == FAIL for c in checks)} problem(s) found")
     return 1 if broken else 0
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--json", action="store_true", help="print one JSON object (ok, checks[])")
-
-
-def cmd_doctor(args: argparse.Namespace) -> int:
-    return report(run_checks(), as_json=args.json)
-
-
-def register_cli(sub: Any) -> None:
-    p = sub.add_parser(
-        "doctor", help="check this machine: transport backend, ROS environment, dependency versions, numba, messages"
-    )
-    add_arguments(p)
-    p.set_defaults(func=cmd_doctor)
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m ambiegen_ros.doctor", description=__doc__.split("\n")[0])
-    add_arguments(parser)
-    return cmd_doctor(parser.parse_args(argv))
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,5 +1,8 @@
 """The one small interface every case study implements (the paper's extension point).
 
+It lives in ``core`` because the search engine, the run records and the operators work on it;
+the case studies themselves live in ``ambiegen_ros.problems``.
+
 A problem supplies: its attributes and length limits, a sampler for the initial population, the
 "TC to environment" step (``environment``), and the surrogate fitness (``evaluate``). Everything
 works on whole batches: ``G`` is a ``(P, m_max, n_attr)`` float array of attribute codes (see
@@ -23,12 +26,9 @@ from typing import Any, ClassVar, Sequence
 
 import numpy as np
 
-from ..core.attributes import Attribute, ScenarioError
-from ..core.scenario import GenomeCodec, Scenario
-
-
-PROFILES = ("replication", "refined")
-DEFAULT_PROFILE = "replication"
+from .attributes import Attribute, ScenarioError
+from .scenario import GenomeCodec, Scenario
+from .names import DEFAULT_PROFILE, PROFILES
 
 
 def check_profile(value: Any) -> str:

@@ -1,0 +1,47 @@
+"""`ambiegen execute SCENARIO.json [--json] [--seed S] [--profile P] [--set OPTION=VALUE ...]`.
+
+Runs one scenario on its full-model simulator (no ROS) and prints the verdict; with ``--json``
+exactly one object ``{"problem", "valid", "failed", "failure_kind", "metrics", "profile"}``
+(failure_kind null when the run passed). Bad input (unreadable or malformed scenario, unknown or
+out-of-domain option) is one line and exit status 2.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+
+from .common import add_profile_option
+
+
+def cmd_execute(args: argparse.Namespace) -> int:
+    from ..problems.scenario_file import load_scenario_file
+    from ..sims.full_model import full_model_executor
+    from ..sims.options import parse_options, result_json
+
+    problem, scenario = load_scenario_file(args.scenario, args.profile)
+    executor = full_model_executor(problem, **parse_options(args.set))
+    outcome = executor.execute(scenario, seed=args.seed)
+    out = result_json(problem.name, outcome)
+    out["profile"] = problem.profile
+    if args.json:
+        print(json.dumps(out))
+        return 0
+    verdict = "FAILED" if out["failed"] else ("not run (invalid)" if not out["valid"] else "passed")
+    kind = f" [{out['failure_kind']}]" if out["failure_kind"] else ""
+    print(f"{problem.name} [{problem.profile}]: {verdict}{kind}: {outcome.detail}")
+    for key, value in out["metrics"].items():
+        if key not in ("detail",):
+            print(f"  {key}: {value:.4g}" if isinstance(value, float) else f"  {key}: {value}")
+    print(f"  wall time: {outcome.elapsed_sec:.3f} s")
+    return 0
+
+
+def register(sub) -> None:
+    p = sub.add_parser("execute", help="run one scenario on its full-model simulator (no ROS) and judge it")
+    p.add_argument("scenario", metavar="SCENARIO.json")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--seed", type=int, default=0, help="simulator seed (sensor noise); default 0")
+    p.add_argument("--set", action="append", default=[], metavar="OPTION=VALUE",
+                   help="simulator option, e.g. oob_tolerance=0.95 or controller=pid (repeatable)")
+    add_profile_option(p)
+    p.set_defaults(func=cmd_execute)

@@ -1,0 +1,98 @@
+"""`ambiegen experiment`: the paper's RQ1-RQ3 in one command (the library is ``ambiegen_ros.experiment``)."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from ..core.errors import BadInput
+
+
+def _spec_from_args(args: argparse.Namespace):
+    from ..experiment import ExperimentSpec
+    from ..sims.options import parse_options
+
+    algorithms = tuple(a.strip() for a in args.algorithms.split(",") if a.strip())
+    return ExperimentSpec(
+        problem=args.problem, algorithms=algorithms, runs=args.runs, seed=args.seed, profile=args.profile,
+        evaluations=args.evaluations, time_budget=args.time_budget, full_model=args.full_model,
+        config_file=args.config, sim_options=parse_options(args.set), round_evaluations=args.round_evaluations,
+        search_share=args.search_share, distinct_distance=args.distinct_distance, clock=args.clock,
+        execute=args.execute,
+    )
+
+
+def cmd_experiment(args: argparse.Namespace) -> int:
+    from ..experiment import ALGORITHM_LABELS, ExperimentError, median, run_experiment
+
+    if args.jobs is not None and args.jobs < 1:
+        raise BadInput("--jobs: must be >= 1")
+    try:
+        spec = _spec_from_args(args)
+        result = run_experiment(spec, Path(args.out), jobs=args.jobs, resume=args.resume,
+                                progress=False if args.quiet else None)
+    except ExperimentError as exc:
+        raise BadInput(str(exc))
+    config, records, errors = result["config"], result["records"], result["errors"]
+    print(f"{config['problem']} ({config['profile']} profile): {len(records)} runs -> {args.out}")
+    for alg in config["algorithms"]:
+        rs = [r for r in records if r["algorithm"] == alg]
+        line = f"  {ALGORITHM_LABELS.get(alg, alg):<13} median best F1 {median([r['best_f1'] for r in rs]):.4g}"
+        if spec.full_model:
+            line += (f", failures/h {median([r['failures_per_hour'] for r in rs]):.3g}"
+                     f", failure rate {median([r['failure_rate'] for r in rs]):.3g}")
+        else:
+            line += f", diversity {median([r['diversity'] for r in rs]):.3f}"
+        print(line)
+    print(f"  report: {Path(args.out) / 'report.md'}")
+    if errors:
+        print(f"ambiegen experiment: {len(errors)} run(s) failed; see above; --resume re-runs them", file=sys.stderr)
+        return 1
+    return 0
+
+
+def register(sub) -> None:
+    """Add ``experiment`` to ``ambiegen``'s subparsers."""
+    from ..core.names import EXECUTE_MODES
+    from ..problems import PROBLEM_NAMES, PROFILES
+
+    p = sub.add_parser("experiment", help="the paper's RQ1-RQ3: repeated runs, statistics, report and plots",
+                       description="Run every algorithm --runs times (run k with seed SEED + k) on a process pool and "
+                                   "write results.csv, stats.json, report.md and plots. RQ1/RQ2 on the surrogate "
+                                   "(same evaluation budget); RQ3 with --full-model (same clock budget for generating "
+                                   "and executing scenarios on the full-model simulators).")
+    p.add_argument("--problem", required=True, choices=PROBLEM_NAMES)
+    p.add_argument("--algorithms", default="ga,nsga2,random", help="comma-separated (default ga,nsga2,random)")
+    p.add_argument("--runs", type=int, default=30, help="runs per algorithm (default 30, as the paper)")
+    p.add_argument("--jobs", type=int, help="parallel runs (default: all cores)")
+    p.add_argument("--out", required=True, metavar="DIR", help="experiment directory (must be new or empty, "
+                                                                 "or an earlier experiment with --resume)")
+    budget = p.add_mutually_exclusive_group()
+    budget.add_argument("--evaluations", type=int, help="surrogate evaluations per run (default: the paper's budget)")
+    budget.add_argument("--time-budget", type=float, metavar="S",
+                        help="seconds per run (RQ1/RQ2: of search; --full-model: of search + execution, default 7200)")
+    p.add_argument("--full-model", action="store_true", help="RQ3: execute scenarios on the full-model simulators")
+    p.add_argument("--profile", choices=PROFILES, help="fidelity profile of the problem (default: replication)")
+    p.add_argument("--seed", type=int, default=0, help="base seed; run k uses seed + k (default 0)")
+    p.add_argument("--resume", action="store_true", help="continue an experiment in --out: skip runs already done")
+    p.add_argument("--config", metavar="FILE.yaml", help="search settings and problem_config overrides")
+    p.add_argument("--set", action="append", default=[], metavar="OPTION=VALUE",
+                   help="--full-model: simulator option (repeatable), as for `ambiegen execute`")
+    p.add_argument("--round-evaluations", type=int,
+                   help="--full-model: evaluations of one search round (default: the paper's RQ3 setting)")
+    p.add_argument("--search-share", type=float, default=0.5,
+                   help="--full-model: most of the time left one search round may use (default 0.5)")
+    p.add_argument("--distinct-distance", type=float, default=0.0,
+                   help="--full-model: a failure is distinct when its Jaccard distance to every earlier failure "
+                        "is above this (default 0: not the same scenario within the attribute tolerances)")
+    p.add_argument("--clock", choices=("wall", "cpu"), default="wall",
+                   help="--full-model: budget clock (default wall, as the paper; cpu = process time, "
+                        "immune to other load on the machine)")
+    p.add_argument("--execute", choices=EXECUTE_MODES, default="suite",
+                   help="--full-model: what a GA/NSGA-II round executes, best first: its suite (10 best / Pareto "
+                        "front, the paper's output; default) or every risky scenario it evaluated (F1 > alpha)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_experiment)
+
+
+__all__ = ["cmd_experiment", "register"]

@@ -1,0 +1,381 @@
+"""The thermostat's surrogate: the room models, the on/off controller and its simulation.
+
+Split from ``problems.thermostat`` (the case study) so that each reads on its own. Simulation
+(all numbers in ``ThermostatConfig``), for steps s = 0, 1, ... of ``step_minutes``:
+
+* the goal and room model of step s are those of the element in effect at minute ``s * step``;
+* the room starts at the first goal with the heater ON;
+* the curve restarts at every element boundary and at every heater switch: ``T0`` is the
+  temperature then and ``n = 1, 2, ...`` counts the steps since; ON ``T = k_on1 (1 - exp(-k_on2 n))
+  + T0``, OFF ``T = k_off1 exp(-k_off2 n) + T0 - k_off1``, with the element's room model;
+* before each step the controller compares the temperature with the step's goal: ON switches OFF
+  once ``T >= goal + hysteresis``, OFF switches ON once ``T < goal - hysteresis``.
+
+Every path (scalar loop for a few schedules, vectorised loop for a batch, the numba loop) reads
+the curve values from one precomputed table (``curve_table``) and adds ``T0``, so an F1 value
+does not depend on the batch it was computed in (bit for bit), which campaigns need to reproduce
+a seed.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from ..core.attributes import IntRange, ScenarioError
+from ..core.problem import check_profile
+
+# (k_on1, k_on2, k_off1, k_off2) per room model 1..7 (the paper prints three; the rest come from
+# the replication data, see the project spec).
+ROOM_MODELS: tuple[tuple[float, float, float, float], ...] = (
+    (7.7, 0.11887928, 5.6, 0.02929884),
+    (7.0, 0.13425024, 3.8, 0.07661568),
+    (7.9, 0.11180434, 5.2, 0.04803319),
+    (6.0, 0.14704908, 4.8, 0.12038760),
+    (8.3, 0.09551135, 4.5, 0.10103580),
+    (7.2, 0.11189481, 5.6, 0.04109810),
+    (5.7, 0.07745100, 4.8, 0.05723616),
+)
+
+TEMP, DUR, MODEL = 0, 1, 2  # attribute columns of G
+
+TEMPERATURE = IntRange("temperature", 16, 25, 1, tolerance=0, unit="degC")
+ROOM_MODEL = IntRange("model", 1, 7, 1, tolerance=0)
+DURATION = IntRange("duration", 60, 240, 15, tolerance=15, unit="min")  # the paper; sampled in both profiles
+# the replication code merges a short remainder of the day into the last element (up to 240 + 45)
+# and its mutation draws 60..285: the durations its search can produce
+REPLICATION_DURATION = IntRange("duration", 60, 285, 15, tolerance=15, unit="min")
+
+
+@dataclass(frozen=True)
+class ThermostatConfig:
+    """Every tunable number of the thermostat case study (defaults: paper / replication code)."""
+
+    profile: str = "replication"  # replication | refined (see the module notes)
+    alpha: float = 1.5  # MO constraint: "risky" when RMSE > alpha
+    requirement_rmse: float = 1.0  # the system requirement (a failure when RMSE exceeds it)
+    step_minutes: float = 3.0  # simulation time step
+    horizon_minutes: float = 1440.0  # R1: a schedule lasts at most 24 h
+    hysteresis: float = 0.1  # on/off band half-width [degC]
+    max_jump: float = 5.0  # refined: adjacent |temp(e_i) - temp(e_i+1)| < max_jump; replication: range <= max_jump
+    sampling: str = "markov"  # "markov" | "uniform" (temperatures of the initial population)
+    p_stay: float = 0.3  # Markov chain: P(keep raising / lowering)
+    markov_max_step: int | None = None  # next temperature within t..t+k (raise) / t-k..t; None: 5 replication, 4 refined
+    room_models: tuple = ROOM_MODELS  # (k_on1, k_on2, k_off1, k_off2) for models 1..7
+    engine: str = "auto"  # "auto": the compiled loop when numba imports, else numpy | "numpy"
+
+    def __post_init__(self):
+        check_profile(self.profile)
+        # YAML / JSON give lists; keep the config hashable and the table well-formed.
+        table = tuple(tuple(float(v) for v in row) for row in self.room_models)
+        if not table or any(len(row) != 4 for row in table):
+            raise ScenarioError("config.room_models", "each row needs 4 numbers", "(k_on1, k_on2, k_off1, k_off2)")
+        object.__setattr__(self, "room_models", table)
+        if self.markov_max_step is None:
+            object.__setattr__(self, "markov_max_step", 5 if self.profile == "replication" else 4)
+        if self.engine not in ("auto", "numpy"):
+            raise ScenarioError("config.engine", f"unknown engine {self.engine!r}", "auto|numpy")
+        if self.sampling not in ("markov", "uniform"):
+            raise ScenarioError("config.sampling", f"unknown sampling {self.sampling!r}", "markov|uniform")
+        if not self.step_minutes > 0:
+            raise ScenarioError("config.step_minutes", "must be positive")
+        if not 0.0 <= self.p_stay <= 1.0:
+            raise ScenarioError("config.p_stay", "must be a probability", "0..1")
+
+    @property
+    def replication(self) -> bool:
+        return self.profile == "replication"
+
+
+SCALAR_BATCH = 16  # up to this many valid schedules, evaluate() uses the scalar simulator
+
+
+# --- simulation --------------------------------------------------------------------------------
+@lru_cache(maxsize=8)
+def curve_table(room_models: tuple, n_max: int) -> tuple[np.ndarray, np.ndarray]:
+    """Curve values ``T = (A[r, n] + T0) - B[r]`` for row ``r = 2 * (model - 1) + on``, n = 0..n_max.
+
+    ON: ``A = k_on1 (1 - exp(-k_on2 n))``, ``B = 0``; OFF: ``A = k_off1 exp(-k_off2 n)``,
+    ``B = k_off1`` (the formulas in the replication code's order of operations). One table for
+    every path makes results independent of how scenarios were batched.
+    """
+    k = np.asarray(room_models, dtype=float)
+    n = np.arange(n_max + 1, dtype=float)
+    A = np.empty((2 * len(k), n_max + 1))
+    A[0::2] = k[:, 2:3] * np.exp(-k[:, 3:4] * n)  # OFF (on = 0)
+    A[1::2] = k[:, 0:1] * (1.0 - np.exp(-k[:, 1:2] * n))  # ON (on = 1)
+    B = np.zeros(2 * len(k))
+    B[0::2] = k[:, 2]
+    A.setflags(write=False)
+    B.setflags(write=False)
+    return A, B
+
+
+def simulate_schedule(goals_per_step, models_per_step, config: ThermostatConfig | None = None,
+                      starts=None, return_heater: bool = False):
+    """Plain-Python simulator of one schedule (the reference the vectorised one is tested against).
+
+    ``goals_per_step[s]`` / ``models_per_step[s]`` (1-based model ids) hold during step s and
+    ``starts[s]`` says that step s begins an element (default: wherever goal or model changes).
+    Returns ``(temperatures after each step, errors)`` and, if asked, the heater state per step;
+    ``errors`` are the samples F1 is computed from (lagged in the replication profile).
+    """
+    config = config or ThermostatConfig()
+    h = config.hysteresis
+    goals = [float(g) for g in goals_per_step]
+    models = [int(m) for m in models_per_step]
+    if starts is None:
+        starts = [s == 0 or goals[s] != goals[s - 1] or models[s] != models[s - 1] for s in range(len(goals))]
+    A, B = curve_table(config.room_models, max(len(goals), 1))
+    A_rows, B_rows = A.tolist(), B.tolist()
+    reset, lag = config.replication, config.replication
+    temps: list[float] = []
+    errors: list[float] = []
+    heater: list[bool] = []
+    T = goals[0] if goals else 0.0
+    on, T0, n = True, T, 0
+    for goal, model, start in zip(goals, models, starts):
+        if start:  # the curve restarts at every element
+            T0, n = T, 0
+            if reset:
+                on = True
+        if on and T >= goal + h:
+            on, T0, n = False, T, 0
+        elif not on and T < goal - h:
+            on, T0, n = True, T, 0
+        before = T - goal
+        n += 1
+        r = 2 * (model - 1) + int(on)
+        T = (A_rows[r][n] + T0) - B_rows[r]
+        temps.append(T)
+        errors.append(before if lag else T - goal)
+        heater.append(on)
+    out = (np.array(temps), np.array(errors))
+    return (*out, np.array(heater, dtype=bool)) if return_heater else out
+
+
+@dataclass
+class BatchRun:
+    """Result of ``simulate_batch``: per-row RMSE, max |error|, step count (traces if recorded)."""
+
+    rmse: np.ndarray
+    max_error: np.ndarray
+    n_steps: np.ndarray
+    temperature: np.ndarray | None = None  # (P, S) after each step, if recorded
+    heater: np.ndarray | None = None  # (P, S) heater ON during each step, if recorded
+    goal: np.ndarray | None = None  # (P, S) goal during each step, if recorded
+    model: np.ndarray | None = None  # (P, S) room model during each step, if recorded
+
+
+def _element_steps(G: np.ndarray, lengths: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
+    """First step of each element and its number of steps: step s runs from minute ``s * step``."""
+    m_max = G.shape[1]
+    used = np.arange(m_max)[None, :] < lengths[:, None]
+    dur = np.where(used, G[:, :, DUR], 0.0)
+    ends = np.cumsum(dur, axis=1)
+    first = np.ceil((ends - dur) / step - 1e-9)
+    count = np.maximum(np.ceil(ends / step - 1e-9) - first, 0.0)
+    return first.astype(np.int64), count.astype(np.int64)
+
+
+def simulate_batch(
+    G: np.ndarray, lengths: np.ndarray, config: ThermostatConfig | None = None, record: bool = False
+) -> BatchRun:
+    """Vectorised simulator of a batch of (domain-valid) schedules ``(G, lengths)``.
+
+    One Python iteration per time step, numpy over the individuals; nothing of size (P, S) is
+    built unless ``record``. Goals and room models change only at element boundaries, so they are
+    applied as sparse "events" (a few rows per step) instead of per-step arrays; the curve comes
+    from ``curve_table`` by flat index ``row * (S + 1) + n``.
+    """
+    config = config or ThermostatConfig()
+    G = np.asarray(G, dtype=float)
+    lengths = np.asarray(lengths, dtype=int)
+    P, m_max = G.shape[0], G.shape[1]
+    h = float(config.hysteresis)
+    first, count = _element_steps(G, lengths, float(config.step_minutes))
+    n_steps = count.sum(axis=1)
+    S = int(n_steps.max(initial=0))
+    A, B = curve_table(config.room_models, max(S, 1))
+    A_flat, width = A.ravel(), A.shape[1]
+    reset, lag = config.replication, config.replication
+
+    # events: element (p, j) takes effect at step first[p, j]; a row's end snapshots its errors
+    p_idx, j_idx = np.nonzero(count > 0)
+    ev_step = first[p_idx, j_idx]
+    order = np.argsort(ev_step, kind="stable")
+    p_idx, j_idx, ev_step = p_idx[order], j_idx[order], ev_step[order]
+    ev_goal = G[p_idx, j_idx, TEMP]
+    ev_base = 2 * (G[p_idx, j_idx, MODEL].astype(np.int64) - 1)  # table row of the model's OFF curve
+    ev_bounds = np.searchsorted(ev_step, np.arange(S + 1))
+    end_rows = np.argsort(n_steps, kind="stable")
+    end_bounds = np.searchsorted(n_steps[end_rows], np.arange(S + 1))
+
+    goal, up, lo = np.zeros(P), np.zeros(P), np.zeros(P)
+    base = np.zeros(P, dtype=np.int64)
+    T = G[:, 0, TEMP].copy() if m_max else np.zeros(P)  # start at the first goal, heater ON
+    T0 = T.copy()
+    on = np.ones(P, dtype=bool)
+    n = np.zeros(P, dtype=np.int64)
+    sw, tmp = np.empty(P, dtype=bool), np.empty(P, dtype=bool)
+    d, rowB = np.empty(P), np.empty(P)
+    idx = np.empty(P, dtype=np.int64)
+    sumsq, maxabs = np.zeros(P), np.zeros(P)
+    final_sumsq, final_maxabs = np.zeros(P), np.zeros(P)
+    if record:
+        rec_T, rec_on = np.empty((S, P)), np.empty((S, P), dtype=bool)
+        rec_goal, rec_model = np.empty((S, P)), np.empty((S, P))
+
+    for s in range(S):
+        a, b = ev_bounds[s], ev_bounds[s + 1]
+        if a < b:  # elements starting now: new goal and model; the curve restarts
+            rows = p_idx[a:b]
+            g = ev_goal[a:b]
+            goal[rows], up[rows], lo[rows], base[rows] = g, g + h, g - h, ev_base[a:b]
+            T0[rows], n[rows] = T[rows], 0
+            if reset:
+                on[rows] = True
+        a, b = end_bounds[s], end_bounds[s + 1]
+        if a < b:  # rows whose schedule ended before this step
+            rows = end_rows[a:b]
+            final_sumsq[rows], final_maxabs[rows] = sumsq[rows], maxabs[rows]
+        # switch: ON -> OFF once T >= goal + h, OFF -> ON once T < goal - h; restart the curve
+        np.greater_equal(T, up, out=sw)
+        sw &= on
+        np.less(T, lo, out=tmp)
+        np.greater(tmp, on, out=tmp)  # (T < lo) and not on
+        sw |= tmp
+        on ^= sw
+        np.copyto(T0, T, where=sw)
+        np.logical_not(sw, out=tmp)
+        np.multiply(n, tmp, out=n)
+        if lag:
+            np.subtract(T, goal, out=d)
+        n += 1
+        # T = (A[row, n] + T0) - B[row], row = base + on
+        np.add(base, on, out=idx)
+        np.take(B, idx, out=rowB)
+        idx *= width
+        idx += n
+        np.take(A_flat, idx, out=T)
+        T += T0
+        T -= rowB
+        if not lag:
+            np.subtract(T, goal, out=d)
+        np.abs(d, out=d)
+        np.maximum(maxabs, d, out=maxabs)
+        d *= d
+        sumsq += d
+        if record:
+            rec_T[s], rec_on[s], rec_goal[s], rec_model[s] = T, on, goal, base // 2 + 1
+
+    ended = n_steps < S
+    sumsq[ended], maxabs[ended] = final_sumsq[ended], final_maxabs[ended]
+    rmse = np.sqrt(sumsq / np.maximum(n_steps, 1))
+    run = BatchRun(rmse=rmse, max_error=maxabs, n_steps=n_steps)
+    if record:
+        run.temperature, run.heater = rec_T.T.copy(), rec_on.T.copy()
+        run.goal, run.model = rec_goal.T.copy(), rec_model.T.astype(np.int64)
+    return run
+
+
+def _simulate_rows(first, count, goal, base, T_init, A_flat, width, B, h, reset, lag, sumsq, maxabs):
+    """Every schedule of a batch, one after another (compiled by numba when available): the same
+    floating-point operations in the same order as ``simulate_schedule`` and ``simulate_batch``."""
+    for p in range(first.shape[0]):
+        T = T_init[p]
+        on = True
+        T0 = T
+        n = 0
+        acc = 0.0
+        top = 0.0
+        for j in range(first.shape[1]):
+            if count[p, j] == 0:
+                continue
+            g = goal[p, j]
+            up = g + h
+            lo = g - h
+            T0 = T
+            n = 0
+            if reset:
+                on = True
+            for _ in range(count[p, j]):
+                if on and T >= up:
+                    on = False
+                    T0 = T
+                    n = 0
+                elif (not on) and T < lo:
+                    on = True
+                    T0 = T
+                    n = 0
+                e = T - g
+                n += 1
+                r = base[p, j] + (1 if on else 0)
+                T = (A_flat[r * width + n] + T0) - B[r]
+                if not lag:
+                    e = T - g
+                e = abs(e)
+                if e > top:
+                    top = e
+                acc += e * e
+        sumsq[p] = acc
+        maxabs[p] = top
+
+
+_ROWS_KERNEL: Any = None  # compiled ``_simulate_rows``, or False without numba
+
+
+def simulate_rows(G: np.ndarray, lengths: np.ndarray, config: ThermostatConfig) -> tuple[np.ndarray, np.ndarray] | None:
+    """RMSE and max |error| of a batch with the compiled per-schedule loop; None without numba."""
+    global _ROWS_KERNEL
+    if _ROWS_KERNEL is None:
+        from ..core.accel import jit
+
+        _ROWS_KERNEL = jit(_simulate_rows) or False
+    if not _ROWS_KERNEL:
+        return None
+    G = np.asarray(G, dtype=float)
+    lengths = np.asarray(lengths, dtype=int)
+    first, count = _element_steps(G, lengths, float(config.step_minutes))
+    n_steps = count.sum(axis=1)
+    A, B = curve_table(config.room_models, max(int(n_steps.max(initial=0)), 1))
+    P = len(G)
+    sumsq, maxabs = np.zeros(P), np.zeros(P)
+    base = np.where(count > 0, 2 * (G[:, :, MODEL].astype(np.int64) - 1), 0)
+    _ROWS_KERNEL(first, count, np.ascontiguousarray(G[:, :, TEMP]), base, G[:, 0, TEMP].copy(), A.ravel(),
+                 A.shape[1], B, float(config.hysteresis), config.replication, config.replication, sumsq, maxabs)
+    return np.sqrt(sumsq / np.maximum(n_steps, 1)), maxabs
+
+
+def schedule_steps(
+    setpoints, durations, models, config: ThermostatConfig | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-element schedule -> per-step goals, models and element starts (one schedule).
+
+    Step s belongs to the element whose interval ``[start, end)`` holds minute ``s * step``.
+    """
+    config = config or ThermostatConfig()
+    step = float(config.step_minutes)
+    goals: list[float] = []
+    room: list[int] = []
+    starts: list[bool] = []
+    start = 0.0
+    for temp, dur, model in zip(setpoints, durations, models):
+        end = start + float(dur)
+        s = len(goals)
+        first = True
+        while s * step < end - 1e-9:
+            goals.append(float(temp))
+            room.append(int(model))
+            starts.append(first)
+            first = False
+            s += 1
+        start = end
+    return np.array(goals), np.array(room, dtype=np.int64), np.array(starts, dtype=bool)
+
+
+def compiled_loaded() -> bool:
+    """Whether the numba loop is compiled already (then even one schedule uses it)."""
+    return bool(_ROWS_KERNEL)

@@ -1,0 +1,193 @@
+"""``VehicleProblem``: sampling, evaluation and one road's environment, tying road, rules and car."""
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+
+from ...core.attributes import Categorical, IntRange
+from ...core.problem import Budget, Evaluation, Problem
+from ...core.scenario import Scenario
+from .car import simulate
+from .config import ANGLE, LENGTH, REPLICATION_M_MAX, STRAIGHT, TYPE, Road, VehicleConfig
+from .replication_car import simulate_replication
+from .replication_road import _cross_section_inside, replication_nodes, replication_points, replication_sections
+from .road import build_spines, element_points, interpolate
+from .validity import _first_half, check_roads
+
+
+class VehicleProblem(Problem):
+    """Roads of straight and arc segments; F1 = max deviation of the surrogate car (paper 5.3)."""
+
+    name: ClassVar[str] = "vehicle"
+    attributes = (
+        Categorical("type", ("straight", "left", "right")),
+        IntRange("length", 5, 50, 1, tolerance=5, unit="m"),
+        IntRange("angle", 5, 85, 5, tolerance=5, unit="deg"),
+    )
+    m_min: ClassVar[int] = 1
+    m_max: ClassVar[int] = 20
+    f1_label: ClassVar[str] = "max deviation from lane centre [m]"
+    paper_budget: ClassVar[Budget] = Budget(500, 500, 100000)
+    Config: ClassVar[type] = VehicleConfig
+
+    def layout(self):
+        """Same domains in both profiles (angle 5 is the filler of straights in the reference data,
+        and the replication code accepts 5 degree turns); replication roads may have up to
+        ``REPLICATION_M_MAX`` elements (its generator grows a road until it leaves the map)."""
+        if self.profile == "replication":
+            return self.attributes, self.m_min, REPLICATION_M_MAX
+        return super().layout()
+
+    @property
+    def replication(self) -> bool:
+        return self.profile == "replication"
+
+    def canonical(self, G: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A straight ignores its angle and a turn its length: both set to their domain's low."""
+        G = np.array(G, dtype=float)
+        used = np.arange(G.shape[1])[None, :] < np.asarray(lengths)[:, None]
+        straight = G[:, :, TYPE] == STRAIGHT
+        G[:, :, ANGLE] = np.where(straight & used, self.attributes[ANGLE].low, G[:, :, ANGLE])
+        G[:, :, LENGTH] = np.where(~straight & used, self.attributes[LENGTH].low, G[:, :, LENGTH])
+        return G, lengths
+
+    # --- sampling ------------------------------------------------------------------------------------
+    def _types(self, n: int, m: int, rng: np.random.Generator) -> np.ndarray:
+        """Segment types: a Markov chain from ``first_type`` (or uniform)."""
+        cfg = self.config
+        t_attr = self.attributes[TYPE]
+        if cfg.sampling == "uniform":
+            return t_attr.sample(rng, (n, m))
+        cum_s = np.cumsum(cfg.p_from_straight)
+        cum_t = np.cumsum(cfg.p_from_turn)
+        u = rng.random((n, m))
+        types = np.empty((n, m), dtype=int)
+        types[:, 0] = t_attr.values.index(cfg.first_type)
+        for i in range(1, m):
+            cum = np.where((types[:, i - 1] == STRAIGHT)[:, None], cum_s, cum_t)
+            types[:, i] = np.minimum((u[:, i, None] >= cum[:, :2]).sum(axis=1), 2)
+        return types
+
+    def sample(self, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """Markov-chain (or uniform) segment types, uniform lengths and angles (from
+        ``sample_angle_min``). Refined: each road grows until the next element would put a spine
+        point outside the map margin, or ``m_max``. Replication (its generator): the first element
+        is a straight of ``first_length``; the road grows until the builder's cross-section has left
+        the map (that element is kept), or ``m_max``."""
+        cfg = self.config
+        m = self.m_max
+        G = np.zeros((n, m, 3))
+        _, l_attr, a_attr = self.attributes
+        angle_attr = IntRange(a_attr.name, cfg.sample_angle_min, a_attr.high, a_attr.step)
+        G[:, :, TYPE] = self._types(n, m, rng)
+        G[:, :, LENGTH] = l_attr.sample(rng, (n, m))
+        G[:, :, ANGLE] = angle_attr.sample(rng, (n, m))
+        if cfg.first_length:
+            G[:, 0, LENGTH] = cfg.first_length
+        if self.replication:
+            ends, _ = replication_sections(G, cfg)
+            outside = ~_cross_section_inside(ends, cfg)
+            lengths = np.where(outside.any(axis=1), np.argmax(outside, axis=1) + 1, m)
+        else:
+            pts, mask = element_points(G, cfg)
+            lo, hi = cfg.margin, cfg.map_size - cfg.margin
+            inside = np.all(((pts >= lo) & (pts <= hi)).all(axis=-1) | ~mask, axis=2)  # (n, m)
+            lengths = np.where(inside.all(axis=1), m, np.argmin(inside, axis=1))
+        lengths = np.maximum(lengths, self.m_min)
+        G[np.arange(m)[None, :] >= lengths[:, None]] = 0.0
+        return G, lengths
+
+    # --- restrictions and surrogate ------------------------------------------------------------------
+    def roads(self, G: np.ndarray, lengths: np.ndarray):
+        """Spines (replication: the road points kept) and the nodes the surrogate scores, of a
+        batch (flat arrays + counts); ``check_roads(nodes, counts, config)`` judges them."""
+        if self.replication:
+            points, n_points, _ = replication_points(G, lengths, self.config)
+            return (points, n_points) + replication_nodes(points, n_points, self.config)
+        spine, n_spine = build_spines(G, lengths, self.config)
+        nodes, n_nodes = interpolate(spine, n_spine, self.config)
+        return spine, n_spine, nodes, n_nodes
+
+    def evaluate(self, G: np.ndarray, lengths: np.ndarray) -> Evaluation:
+        G = np.asarray(G, dtype=float)
+        lengths = np.asarray(lengths, dtype=int)
+        P = len(lengths)
+        f1 = np.zeros(P)
+        max_deviation = np.zeros(P)
+        valid = np.zeros(P, bool)
+        reasons: list[str | None] = [None] * P
+        road_length = np.zeros(P)
+        metrics = {}
+        domain_ok = self.codec.in_domain(G, lengths)
+        for i in np.flatnonzero(~domain_ok):
+            reasons[i] = self.codec.domain_reason(G[i], int(lengths[i]))
+        ok = np.flatnonzero(domain_ok)
+        if self.replication:
+            used = np.zeros(P, dtype=np.int64)
+            path_simple = np.ones(P, bool)
+            metrics = {"elements_used": used, "car_path_simple": path_simple}
+        if len(ok):
+            if self.replication:
+                points, n_points, used[ok] = replication_points(G[ok], lengths[ok], self.config)
+                nodes, n_nodes = replication_nodes(points, n_points, self.config)
+            else:
+                _, _, nodes, n_nodes = self.roads(G[ok], lengths[ok])
+            v, why, length, _ = check_roads(nodes, n_nodes, self.config)
+            road_length[ok] = length
+            valid[ok] = v
+            for i, reason in zip(ok, why):
+                reasons[i] = reason
+            if v.any():
+                road = np.repeat(np.arange(len(ok)), n_nodes)
+                sel = v[road]
+                if self.replication:
+                    maxd, simple = simulate_replication(nodes[sel], n_nodes[v], self.config)
+                    max_deviation[ok[v]] = maxd
+                    path_simple[ok[v]] = simple
+                    f1[ok[v]] = np.where(simple, maxd, 0.0)
+                else:
+                    f1[ok[v]] = simulate(nodes[sel], n_nodes[v], length[v], self.config)
+                    max_deviation = f1.copy()
+        return Evaluation(
+            f1=f1,
+            valid=valid,
+            reasons=reasons,
+            metrics={"max_deviation": max_deviation, "road_length": road_length, **metrics},
+        )
+
+    def environment(self, scenario: Scenario, start_offset: float = 0.0) -> Road:
+        """Build, check and drive one road (even if invalid: ``valid``/``reason`` say so).
+
+        ``start_offset`` shifts the car's start sideways (> 0 = left); 0 for the surrogate's F1.
+        """
+        cfg = self.config
+        row = self.codec.to_row(scenario)
+        G, lengths = self.codec.split(row)
+        spine, _, nodes, n_nodes = self.roads(G, lengths)
+        valid, reasons, length, min_radius = check_roads(nodes, n_nodes, cfg)
+        path_simple = True
+        if not self.replication:
+            maxd, traces = simulate(nodes, n_nodes, length, cfg, offsets=[start_offset], record=True)
+            path, deviations, max_deviation = traces[0][:, :2], traces[0][:, 2], float(maxd[0])
+        elif _first_half(n_nodes)[0] >= 2 and n_nodes[0] - _first_half(n_nodes)[0] >= 2:
+            maxd, simple, traces = simulate_replication(nodes, n_nodes, cfg, offsets=[start_offset], record=True)
+            path, deviations, _ = traces[0]
+            max_deviation, path_simple = float(maxd[0]), bool(simple[0])
+        else:  # too short for the replication car
+            path, deviations, max_deviation = np.zeros((0, 2)), np.zeros(0), 0.0
+        return Road(
+            spine=spine,
+            nodes=nodes,
+            length=float(length[0]),
+            valid=bool(valid[0]),
+            reason=reasons[0],
+            min_radius=float(min_radius[0]),
+            path=path,
+            deviations=deviations,
+            max_deviation=max_deviation,
+            lane_width=cfg.lane_width,
+            map_size=cfg.map_size,
+            margin=cfg.margin,
+            car_path_simple=path_simple,
+        )
