@@ -55,9 +55,6 @@ from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 import numpy as np
-from scipy import ndimage
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
 
 from ..core.attributes import Categorical, IntRange, ScenarioError
 from ..core.scenario import Scenario
@@ -67,6 +64,7 @@ HORIZONTAL, VERTICAL = 0, 1
 DIAGONAL_RULES = ("both_free", "one_free", "always")
 INFLATION_RULES = ("overlap", "centre")  # how the robot radius blocks cells (see ``inflation_footprint``)
 INFLATION_RULE = {"refined": "overlap", "replication": "centre"}
+SMALL_BATCH = 16  # up to this many maps, "auto" runs the planner uncompiled unless numba has it ready
 ENGINES = ("auto", "numba", "numpy")  # batch planner: numba when importable, else scipy
 NO_PATH = "no path from start to goal"
 
@@ -230,8 +228,23 @@ def inflate(occupied: np.ndarray, radius: float, resolution: float = 1.0, rule: 
     foot = inflation_footprint(radius, resolution, rule)
     if foot.sum() == 1:
         return occupied.copy()
-    structure = foot if occupied.ndim == 2 else foot[None]
-    return ndimage.binary_dilation(occupied, structure=structure)
+    return dilate(occupied, foot)
+
+
+def dilate(occupied: np.ndarray, foot: np.ndarray) -> np.ndarray:
+    """Binary dilation of the last two axes by a symmetric ``(2k+1, 2k+1)`` footprint, outside = free.
+
+    The same cells as ``scipy.ndimage.binary_dilation`` (tested), with numpy alone: scipy's import
+    costs more than a few maps do.
+    """
+    k = foot.shape[0] // 2
+    H, W = occupied.shape[-2:]
+    padded = np.zeros(occupied.shape[:-2] + (H + 2 * k, W + 2 * k), dtype=bool)
+    padded[..., k:k + H, k:k + W] = occupied
+    out = np.zeros_like(occupied, dtype=bool)
+    for dy, dx in np.argwhere(foot):
+        out |= padded[..., dy:dy + H, dx:dx + W]
+    return out
 
 
 # --- planners ------------------------------------------------------------------------------
@@ -293,7 +306,7 @@ def astar(
     return math.inf, []
 
 
-def grid_graph(occupied: np.ndarray, diagonal: str = "both_free") -> csr_matrix:
+def grid_graph(occupied: np.ndarray, diagonal: str = "both_free") -> Any:
     """Block-diagonal CSR graph of a batch ``(P, H, W)``: node ``p*H*W + y*W + x``, legal moves."""
     occupied = np.asarray(occupied, dtype=bool)
     P, H, W = occupied.shape
@@ -318,11 +331,15 @@ def grid_graph(occupied: np.ndarray, diagonal: str = "both_free") -> csr_matrix:
     indices = node[rows] + offsets[ks]
     indptr = np.zeros(n_nodes + 1, dtype=np.int32)
     np.cumsum(valid.sum(axis=1, dtype=np.int32), out=indptr[1:])
+    from scipy.sparse import csr_matrix
+
     return csr_matrix((costs[ks], indices, indptr), shape=(n_nodes, n_nodes))
 
 
 def _scipy_lengths(occupied: np.ndarray, start, goal, diagonal: str, chunk: int) -> np.ndarray:
     """``batch_path_lengths`` with scipy: one Dijkstra call per ``chunk`` maps (bounds memory)."""
+    from scipy.sparse.csgraph import dijkstra
+
     P, H, W = occupied.shape
     out = np.full(P, np.inf)
     sx, sy = int(start[0]), int(start[1])
@@ -455,12 +472,18 @@ def batch_path_lengths(
     occupied = np.ascontiguousarray(occupied, dtype=bool)
     if engine not in ENGINES:
         raise ScenarioError("engine", f"unknown engine {engine!r}", "|".join(ENGINES))
+    out = np.empty(len(occupied))
+    if engine == "auto" and len(occupied) <= SMALL_BATCH and not _KERNEL:
+        # a few maps: the kernel's own code as plain Python (~15 ms a map, the same floats), which
+        # spares numba's import and cache load (~0.8 s) when nothing has compiled it yet
+        _dijkstra_maps(occupied, int(start[0]), int(start[1]), int(goal[0]), int(goal[1]),
+                       DIAGONAL_RULES.index(diagonal), out)
+        return out
     kernel: Any = _kernel() if engine != "numpy" else False
     if engine == "numba" and not kernel:
         raise ImportError("numba is not installed; use engine='numpy'")
     if not kernel:
         return _scipy_lengths(occupied, start, goal, diagonal, chunk)
-    out = np.empty(len(occupied))
     kernel(occupied, int(start[0]), int(start[1]), int(goal[0]), int(goal[1]), DIAGONAL_RULES.index(diagonal), out)
     return out
 

@@ -247,6 +247,38 @@ def test_batch_engines_give_identical_floats(problem, diagonal):
     assert 0 < np.isfinite(fast).sum() < 300
 
 
+
+@pytest.mark.parametrize("diagonal", ["both_free", "one_free", "always"])
+def test_a_few_maps_planned_uncompiled_give_the_compiled_floats(problem, diagonal, monkeypatch):
+    """``auto`` plans up to SMALL_BATCH maps with the kernel's code as plain Python when numba has
+    not compiled it yet (start-up of `ambiegen evaluate`); F1 must not depend on that."""
+    import ambiegen_ros.problems.robot as module
+
+    G, lengths = problem.sample(module.SMALL_BATCH, np.random.default_rng(5))
+    grids = build_grids(G, lengths, problem.config)
+    compiled = batch_path_lengths(grids, START, GOAL, diagonal, engine="numba")
+    monkeypatch.setattr(module, "_KERNEL", None)  # as in a fresh process
+    monkeypatch.setattr(module, "_kernel", lambda: pytest.fail("a few maps must not load numba"))
+    plain = batch_path_lengths(grids, START, GOAL, diagonal)
+    np.testing.assert_array_equal(plain, compiled)
+    assert np.isfinite(plain).any()
+
+
+@pytest.mark.parametrize("rule", ["overlap", "centre"])
+@pytest.mark.parametrize("radius", [0.6, 1.0, 1.7, 2.5])
+def test_dilation_equals_scipy(rule, radius):
+    from scipy import ndimage
+
+    from ambiegen_ros.problems.robot import dilate, inflation_footprint
+
+    grids = np.random.default_rng(int(radius * 10)).random((6, 23, 31)) < 0.08
+    grids[:, 0, :] = True  # walls on the border: the outside must count as free
+    foot = inflation_footprint(radius, 1.0, rule)
+    expected = ndimage.binary_dilation(grids, structure=foot[None])
+    np.testing.assert_array_equal(dilate(grids, foot), expected)
+    np.testing.assert_array_equal(dilate(grids[2], foot), expected[2])
+
+
 def test_corner_cutting_forbidden():
     # A barrier whose only opening is a diagonal squeeze between (10, 20) and (11, 21).
     grid = empty_grid()

@@ -310,6 +310,24 @@ def test_engines_agree_whatever_numpy_trig_returns(sampled, monkeypatch):
     assert np.array_equal(simulate(flat, n, length, fast), simulate(flat, n, length, slow))
 
 
+
+@pytest.mark.parametrize("profile", ["replication", "refined"])
+def test_a_few_roads_skip_numba_and_score_the_same_bits(profile, monkeypatch):
+    """Up to SMALL_BATCH roads take the numpy engine while numba is not loaded (start-up of
+    `ambiegen evaluate`); a batch of them must score the same bits as the compiled engine."""
+    from ambiegen_ros.problems.vehicle import kernels, problem as module
+
+    case = get_problem("vehicle", {"profile": profile})
+    G, L = case.sample(module.SMALL_BATCH, np.random.default_rng(8))
+    compiled = get_problem("vehicle", {"profile": profile, "engine": "numba" if HAS_NUMBA else "numpy"}).evaluate(G, L)
+    monkeypatch.setattr(kernels, "_KERNELS", None)  # as in a fresh process
+    monkeypatch.setattr(kernels, "_kernels", lambda: pytest.fail("a few roads must not load numba"))
+    monkeypatch.setattr(module, "kernels_loaded", lambda: False)
+    few = case.evaluate(G, L)
+    assert np.array_equal(few.f1, compiled.f1) and np.array_equal(few.valid, compiled.valid)
+    assert few.valid.any()
+
+
 # --- evaluate / environment / sampler -------------------------------------------------------------------
 def test_evaluate_and_environment_agree(problem, sampled):
     G, L = sampled["G"][:40], sampled["L"][:40]

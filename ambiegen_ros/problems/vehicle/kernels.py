@@ -276,6 +276,11 @@ def _kernels():
     return _KERNELS
 
 
+def kernels_loaded() -> bool:
+    """Whether the numba kernels are compiled already (then even one road uses them)."""
+    return bool(_KERNELS)
+
+
 def _engine(cfg: VehicleConfig) -> str:
     """"numba" or "numpy" for this config; "numba" without numba installed is an error."""
     if cfg.engine == "numpy":

@@ -1,6 +1,7 @@
 """``VehicleProblem``: sampling, evaluation and one road's environment, tying road, rules and car."""
 from __future__ import annotations
 
+import dataclasses
 from typing import ClassVar
 
 import numpy as np
@@ -9,11 +10,15 @@ from ...core.attributes import Categorical, IntRange
 from ...core.problem import Budget, Evaluation, Problem
 from ...core.scenario import Scenario
 from .car import simulate
+from .kernels import kernels_loaded
 from .config import ANGLE, LENGTH, REPLICATION_M_MAX, STRAIGHT, TYPE, Road, VehicleConfig
 from .replication_car import simulate_replication
 from .replication_road import _cross_section_inside, replication_nodes, replication_points, replication_sections
 from .road import build_spines, element_points, interpolate
 from .validity import _first_half, check_roads
+
+
+SMALL_BATCH = 16  # up to this many roads, evaluate() does not load numba for them (see _config_for)
 
 
 class VehicleProblem(Problem):
@@ -99,15 +104,23 @@ class VehicleProblem(Problem):
         return G, lengths
 
     # --- restrictions and surrogate ------------------------------------------------------------------
-    def roads(self, G: np.ndarray, lengths: np.ndarray):
+    def roads(self, G: np.ndarray, lengths: np.ndarray, cfg: VehicleConfig | None = None):
         """Spines (replication: the road points kept) and the nodes the surrogate scores, of a
         batch (flat arrays + counts); ``check_roads(nodes, counts, config)`` judges them."""
+        cfg = cfg or self.config
         if self.replication:
-            points, n_points, _ = replication_points(G, lengths, self.config)
-            return (points, n_points) + replication_nodes(points, n_points, self.config)
-        spine, n_spine = build_spines(G, lengths, self.config)
-        nodes, n_nodes = interpolate(spine, n_spine, self.config)
+            points, n_points, _ = replication_points(G, lengths, cfg)
+            return (points, n_points) + replication_nodes(points, n_points, cfg)
+        spine, n_spine = build_spines(G, lengths, cfg)
+        nodes, n_nodes = interpolate(spine, n_spine, cfg)
         return spine, n_spine, nodes, n_nodes
+
+    def _config_for(self, n_roads: int):
+        """A few roads take the numpy engine unless numba is loaded already: the same bits (tested),
+        without numba's import (about 0.3 s, more than a few roads cost)."""
+        if self.config.engine == "auto" and n_roads <= SMALL_BATCH and not kernels_loaded():
+            return dataclasses.replace(self.config, engine="numpy")
+        return self.config
 
     def evaluate(self, G: np.ndarray, lengths: np.ndarray) -> Evaluation:
         G = np.asarray(G, dtype=float)
@@ -123,17 +136,18 @@ class VehicleProblem(Problem):
         for i in np.flatnonzero(~domain_ok):
             reasons[i] = self.codec.domain_reason(G[i], int(lengths[i]))
         ok = np.flatnonzero(domain_ok)
+        cfg = self._config_for(len(ok))
         if self.replication:
             used = np.zeros(P, dtype=np.int64)
             path_simple = np.ones(P, bool)
             metrics = {"elements_used": used, "car_path_simple": path_simple}
         if len(ok):
             if self.replication:
-                points, n_points, used[ok] = replication_points(G[ok], lengths[ok], self.config)
-                nodes, n_nodes = replication_nodes(points, n_points, self.config)
+                points, n_points, used[ok] = replication_points(G[ok], lengths[ok], cfg)
+                nodes, n_nodes = replication_nodes(points, n_points, cfg)
             else:
-                _, _, nodes, n_nodes = self.roads(G[ok], lengths[ok])
-            v, why, length, _ = check_roads(nodes, n_nodes, self.config)
+                _, _, nodes, n_nodes = self.roads(G[ok], lengths[ok], cfg)
+            v, why, length, _ = check_roads(nodes, n_nodes, cfg)
             road_length[ok] = length
             valid[ok] = v
             for i, reason in zip(ok, why):
@@ -142,12 +156,12 @@ class VehicleProblem(Problem):
                 road = np.repeat(np.arange(len(ok)), n_nodes)
                 sel = v[road]
                 if self.replication:
-                    maxd, simple = simulate_replication(nodes[sel], n_nodes[v], self.config)
+                    maxd, simple = simulate_replication(nodes[sel], n_nodes[v], cfg)
                     max_deviation[ok[v]] = maxd
                     path_simple[ok[v]] = simple
                     f1[ok[v]] = np.where(simple, maxd, 0.0)
                 else:
-                    f1[ok[v]] = simulate(nodes[sel], n_nodes[v], length[v], self.config)
+                    f1[ok[v]] = simulate(nodes[sel], n_nodes[v], length[v], cfg)
                     max_deviation = f1.copy()
         return Evaluation(
             f1=f1,
