@@ -399,6 +399,15 @@ class SutAdapter:
         self.samples.clear()
         stamps = rows[:, 0].astype(np.int64)
         recv = rows[:, 1].astype(np.int64)
+        _prev = getattr(self, "_dbg_prev", None)
+        _all = np.concatenate([[_prev], stamps]) if _prev is not None else stamps
+        _d = np.diff(_all) / 1e9
+        self._dbg_n = getattr(self, "_dbg_n", 0) + len(stamps)
+        if len(_d) and _d.max() > 0.15:
+            self.node.logger.info(f"DBG gap {_d.max():.2f} s sim at stamp {(_all[np.argmax(_d)] - (job.first[0] if job.first else _all[0]))/1e9:.2f}; batch {len(stamps)}; total {self._dbg_n}")
+        if len(stamps) > 200:
+            self.node.logger.info(f"DBG big batch {len(stamps)}")
+        self._dbg_prev = int(stamps[-1])
         if job.first is None:
             job.first = (int(stamps[0]), int(recv[0]))
             job.anchor = recv[0] / 1e9
@@ -439,6 +448,9 @@ class SutAdapter:
         outcome.metrics = {**outcome.metrics, "valid": job.valid, "reason": job.reason, "wall_s": wall,
                            "time_scale": self.time_scale, "stamp_clock": self.stamp_clock}
         self.publish(job.run_id, job.scenario_id, outcome)
+        self.node.logger.info(f"DBG received {getattr(self, '_dbg_n', 0)} samples")
+        self._dbg_n = 0
+        self._dbg_prev = None
         self.node.logger.info(f"scenario {job.scenario_id}: {outcome.failure_kind} ({outcome.detail}) in {wall:.2f} s")
 
 

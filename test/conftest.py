@@ -19,9 +19,8 @@ if str(ROOT) not in sys.path:
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 # 0 is every ROS user's default; ids above 101 put DDS ports into Linux's ephemeral range
-# (32768+); 71 is still fixed in test/test_doctor.py and test/test_deps.py, 7 in
-# test/test_names_safety.py, 72-73 in test/ros/test_multihost.py (its own network namespaces).
-DOMAIN_POOL = [d for d in range(10, 102) if d not in (71, 72, 73)]
+# (32768+); 72-73 stay fixed in test/ros/test_multihost.py (inside its own network namespaces).
+DOMAIN_POOL = [d for d in range(10, 102) if d not in (72, 73)]
 LOCK_DIR = Path(tempfile.gettempdir()) / "ambiegen-test-domains"
 
 

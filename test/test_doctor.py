@@ -19,7 +19,7 @@ ROS_VARS = ("AMENT_PREFIX_PATH", "RMW_IMPLEMENTATION", "ROS_AUTOMATIC_DISCOVERY_
 
 def run_doctor(args: list[str], extra_path: Path | None = None, **env_vars: str) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if k not in ROS_VARS}
-    env.update(ROS_DOMAIN_ID="71", PYTHONPATH=os.pathsep.join(str(p) for p in (extra_path, REPO) if p), **env_vars)
+    env.update(PYTHONPATH=os.pathsep.join(str(p) for p in (extra_path, REPO) if p), **env_vars)
     return subprocess.run([sys.executable, "-m", "ambiegen_ros.cli", "doctor", *args], cwd=REPO, env=env,
                           capture_output=True, text=True, timeout=300)
 
@@ -28,15 +28,21 @@ def by_name(payload: dict) -> dict[str, dict]:
     return {c["name"]: c for c in payload["checks"]}
 
 
+@pytest.fixture(autouse=True)
+def own_domain(ros_domain, monkeypatch) -> int:
+    """A ROS domain id no other test holds (test/conftest.py), in this process and the doctor's."""
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(ros_domain))
+    return ros_domain
+
+
 @pytest.fixture
 def clean_env(monkeypatch):
     for var in ROS_VARS:
         monkeypatch.delenv(var, raising=False)
-    monkeypatch.setenv("ROS_DOMAIN_ID", "71")
     return monkeypatch
 
 
-def test_healthy_machine_text_and_json():
+def test_healthy_machine_text_and_json(own_domain):
     text = run_doctor([])
     assert text.returncode == 0, text.stdout + text.stderr
     lines = text.stdout.splitlines()
@@ -53,7 +59,7 @@ def test_healthy_machine_text_and_json():
     assert backend["chosen"] in ("rclpy", "dds")
     if backend["rclpy_error"]:  # no ROS here: the reason is named
         assert backend["chosen"] == "dds" and "rclpy" in checks["backend"]["detail"]
-    assert checks["domain_id"]["data"] == {"domain_id": 71}
+    assert checks["domain_id"]["data"] == {"domain_id": own_domain}
     assert checks["discovery_range"]["data"] == {"range": "LOCALHOST", "campaign_range": "LOCALHOST"}
     assert checks["static_peers"]["data"] == {"peers": ["127.0.0.1", "localhost"]}
     assert checks["rmw"]["data"] == {"RMW_IMPLEMENTATION": None}

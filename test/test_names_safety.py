@@ -22,7 +22,14 @@ from ambiegen_ros.ros.conversions import ScenarioMeta
 from ambiegen_ros.ros.types import get_registry
 
 REPO = Path(__file__).resolve().parents[1]
-DOMAIN = "7"
+
+
+
+@pytest.fixture(autouse=True)
+def own_domain(ros_domain, monkeypatch) -> None:
+    """A ROS domain id no other test holds (test/conftest.py), for the nodes these tests start."""
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(ros_domain))
+
 
 SAFE = ["run-1a2b3c4d", "thermostat-nsga2-s1-abc123", "replay-run-1-ff00aa", "w_a", "thermostat_sim_1234",
         "robot.sim+2@host=1", "A" * limits.MAX_NAME_LENGTH]
@@ -69,7 +76,7 @@ def test_json_depth_is_measured_without_recursion():
 
 
 def _start(module: str, *params: str) -> subprocess.CompletedProcess:
-    env = dict(os.environ, ROS_DOMAIN_ID=DOMAIN, PYTHONUNBUFFERED="1")
+    env = dict(os.environ, PYTHONUNBUFFERED="1")  # ROS_DOMAIN_ID: this test's own (own_domain)
     if env.get("AMBIEGEN_TRANSPORT") != "rclpy":
         env["AMBIEGEN_TRANSPORT"] = "dds"
     args = [sys.executable, "-m", module, "--ros-args"]
