@@ -14,6 +14,8 @@ class Qos:
     reliable: bool = True
     transient_local: bool = False
     depth: int = 10
+    keep_all: bool = False
+    """KEEP_ALL history (``depth`` unused): a slow reader buffers instead of losing the oldest samples."""
 
 
 DEFAULT = Qos()

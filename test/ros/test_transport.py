@@ -292,6 +292,7 @@ def test_rclpy_qos_table():
         "history": "keep_last", "depth": 1, "reliability": "best_effort", "durability": "volatile"}
     assert rclpy_backend.qos_from_profile_fields("RELIABLE", "TRANSIENT_LOCAL", "KEEP_LAST", 1) == (LATCHED, False)
     assert rclpy_backend.qos_from_profile_fields("BEST_EFFORT", "VOLATILE", "KEEP_ALL", 5)[1] is True
+    assert rclpy_backend.qos_profile_kwargs(Qos(keep_all=True))["history"] == "keep_all"
 
 
 @pytest.mark.skipif(rclpy_backend.is_available(), reason="rclpy is installed here")
@@ -529,6 +530,7 @@ def test_dds_names_and_qos_mapping(monkeypatch):
     assert q[Policy.Reliability] == Policy.Reliability.Reliable(max_blocking_time=dds_infinity)
     assert q[Policy.Durability] == Policy.Durability.TransientLocal
     assert q[Policy.History] == Policy.History.KeepLast(1)
+    assert D.dds_qos(Qos(depth=5, keep_all=True))[Policy.History] == Policy.History.KeepAll
     assert q[Policy.DurabilityService].history == Policy.History.KeepLast(1)
     assert q[Policy.DataRepresentation] == Policy.DataRepresentation(use_cdrv0_representation=True)
     assert q[Policy.Userdata].data == b"typehash=RIHS01_ab;"
@@ -620,6 +622,24 @@ def test_in_process_pubsub_raw_and_bad_payload(dds_env, ros_domain):
         node.create_publisher(GRID, "/t", DEFAULT)  # same topic, other type
     with pytest.raises(transport.TransportError):
         node.create_publisher("std_msgs/msg/Nope", "/n", DEFAULT)
+
+
+def test_keep_all_reader_buffers_what_a_keep_last_reader_loses(dds_env, ros_domain):
+    """A reader that does not take for a while (a judge loading its kernels): keep-last 100 keeps
+    the newest 100 samples, keep-all keeps every one (the SUT adapter's sample subscription)."""
+    node = dds_env(ros_domain)
+    writer_qos, n = Qos(reliable=True, depth=1000), 600
+    pub = node.create_publisher(STRING, "/samples", writer_qos)
+    last, every = [], []
+    node.create_subscription(STRING, "/samples", lambda m: last.append(m.data), Qos(reliable=True, depth=100))
+    node.create_subscription(STRING, "/samples", lambda m: every.append(m.data),
+                             Qos(reliable=True, depth=100, keep_all=True))
+    assert node.wait_for_subscribers(pub, 2, PATIENCE)
+    for i in range(n):  # nobody takes meanwhile: the subscriptions run only when the node spins
+        pub.publish(node.new_message(STRING, data=str(i)))
+    node.spin_until(lambda: len(every) == n and last and last[-1] == str(n - 1), PATIENCE)
+    assert every == [str(i) for i in range(n)]
+    assert len(last) < n and last[-1] == str(n - 1)
 
 
 def test_every_known_message_type_round_trips(dds_env, ros_domain):

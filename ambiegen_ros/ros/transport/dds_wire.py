@@ -150,7 +150,7 @@ def unpad_cdr(data: bytes) -> bytes:
 def dds_qos(qos: Qos, type_hash: str = "") -> "_DdsQos":
     """Endpoint QoS as rmw_cyclonedds_cpp (Jazzy) builds it, plus the REP 2011 type hash."""
     policies = [
-        Policy.History.KeepLast(max(1, int(qos.depth))),
+        Policy.History.KeepAll if qos.keep_all else Policy.History.KeepLast(max(1, int(qos.depth))),
         Policy.Reliability.Reliable(max_blocking_time=dds_infinity) if qos.reliable
         else Policy.Reliability.BestEffort,
         Policy.DataRepresentation(use_cdrv0_representation=True),

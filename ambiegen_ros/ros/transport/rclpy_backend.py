@@ -60,7 +60,7 @@ def unavailable_reason() -> str:
 def qos_profile_kwargs(qos: Qos) -> dict[str, Any]:
     """Policy names/values for ``rclpy.qos.QoSProfile``, as strings (no rclpy needed)."""
     return {
-        "history": "keep_last",
+        "history": "keep_all" if qos.keep_all else "keep_last",
         "depth": max(1, int(qos.depth)),
         "reliability": "reliable" if qos.reliable else "best_effort",
         "durability": "transient_local" if qos.transient_local else "volatile",
@@ -71,7 +71,7 @@ def to_rclpy_qos(qos: Qos):
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     kw = qos_profile_kwargs(qos)
     return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
+        history=HistoryPolicy.KEEP_ALL if qos.keep_all else HistoryPolicy.KEEP_LAST,
         depth=kw["depth"],
         reliability=ReliabilityPolicy.RELIABLE if qos.reliable else ReliabilityPolicy.BEST_EFFORT,
         durability=(DurabilityPolicy.TRANSIENT_LOCAL if qos.transient_local
