@@ -50,7 +50,7 @@ from ambiegen_ros.ros import conversions
 from ambiegen_ros.ros.qos import DEFAULT, LATCHED, STREAM, Qos
 from ambiegen_ros.sims import Outcome
 from ambiegen_ros.sims.full_model import FullModelExecutor, sim_config
-from ambiegen_ros.sims.oracles import CarJudge, RobotJudge, ThermostatJudge
+from ambiegen_ros.sims.oracles import CarJudge, RobotJudge, ThermostatJudge, warm_up_judge
 from ambiegen_ros.nodes import run_node
 from sim_nodes.worker import WorkerEndpoint, load_problem, worker_node
 
@@ -199,32 +199,12 @@ class SutAdapter:
                                        lambda: len(self.queue) + (self.job is not None), default_id)
         self.worker_id = self.endpoint.worker_id
         self.publish = self.endpoint.publish
-        self._warm_up()
+        warm_up_judge(self.problem_name, self.oracle)  # not mid-run: see its docstring
         n.create_timer(0.02, self.idle)
         n.logger.info(
             f"{self.worker_id}: {self.problem_name} scenarios -> {', '.join(f'{k}={v}' for k, v in self.topics.items() if v)}"
             f" (time_scale {self.time_scale:g}, stamp_clock {self.stamp_clock})"
         )
-
-    def _warm_up(self) -> None:
-        """Judge a tiny made-up run once, before any scenario.
-
-        A judge's first ``add`` pays one-time costs: the robot's compiled clearance kernel loads
-        in 0.5-1 s. Paid in the middle of a run, that blocks the only thread while the SUT keeps
-        streaming; at 150x with 0.1 s steps, 1,500 samples a second overflow the sample queue
-        (depth 1000, keep last) within 0.7 s and DDS drops the oldest silently. The gap then
-        looks like a robot standing still for 10 s: a stall verdict that the run never had.
-        """
-        cfg = self.oracle
-        if self.problem_name == "robot":
-            judge = RobotJudge(np.zeros((4, 4), dtype=bool), 1.0, (3.5, 3.5), cfg)
-            judge.add(np.array([0.0, 0.1]), np.array([0.5, 0.6]), np.array([0.5, 0.5]), np.zeros(2))
-        elif self.problem_name == "vehicle":
-            judge = CarJudge(np.array([[0.0, 0.0], [50.0, 0.0]]), 4.0, cfg)
-            judge.add(np.array([0.0, 0.1]), np.array([0.0, 0.5]), np.array([-2.0, -2.0]), np.zeros(2), np.ones(2))
-        else:
-            judge = ThermostatJudge([20.0], [1.0], cfg)
-            judge.add(np.array([0.0, 60.0]), np.array([20.0, 20.0]))
 
     # --- worker side ----------------------------------------------------------------------------
     def accept(self, run_id: str, sid: int, scenario: Any, msg: Any) -> None:

@@ -9,6 +9,11 @@ from __future__ import annotations
 import warnings
 from typing import Any, Callable
 
+SMALL_BATCH = 16
+"""Up to this many scenarios, ``evaluate(..., engine="auto")`` runs the kernels' code uncompiled
+(or numpy) unless numba is loaded already: the same bits, without numba's ~0.3-0.8 s import and
+cache load, which costs more than a few scenarios do (start-up of ``ambiegen evaluate``)."""
+
 _NUMBA: Any = None  # the numba module, or False once an import failed
 _NUMBA_ERROR = ""  # why it failed ("ExceptionType: message")
 

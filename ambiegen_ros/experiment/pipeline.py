@@ -24,6 +24,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from ..core.accel import SMALL_BATCH
+
 SAMPLE_CAP = 1000  # executions kept per run for the surrogate-vs-full-model correlation
 
 _WARM: set[tuple[str, bool]] = set()
@@ -40,7 +42,7 @@ def warm_up(problem, executor) -> None:
     if key in _WARM:
         return
     rng = np.random.default_rng(12345)
-    X = problem.sample_rows(4, rng)
+    X = problem.sample_rows(2 * SMALL_BATCH, rng)  # more than SMALL_BATCH: the compiled kernels load
     ev = problem.evaluate_rows(X)
     if executor is not None:
         valid = np.flatnonzero(ev.valid)

@@ -36,14 +36,4 @@ def get_problem(name: str, config: Any = None, **overrides: Any) -> Problem:
     return problem_class(name)(config, **overrides)
 
 
-def __getattr__(name: str) -> Any:
-    """``Budget``, ``Evaluation``, ``Problem``: the interface, re-exported on first use."""
-    if name in ("Budget", "Evaluation", "Problem"):
-        from ..core import problem
-
-        return getattr(problem, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-__all__ = ["Budget", "DEFAULT_PROFILE", "Evaluation", "Problem", "PROBLEM_NAMES", "PROFILES", "get_problem",
-           "problem_class"]
+__all__ = ["DEFAULT_PROFILE", "PROBLEM_NAMES", "PROFILES", "get_problem", "problem_class"]

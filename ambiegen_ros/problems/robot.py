@@ -56,6 +56,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ..core.accel import SMALL_BATCH
 from ..core.attributes import Categorical, IntRange, ScenarioError
 from ..core.scenario import Scenario
 from ..core.problem import DEFAULT_PROFILE, Budget, Evaluation, Problem, check_profile
@@ -64,7 +65,6 @@ HORIZONTAL, VERTICAL = 0, 1
 DIAGONAL_RULES = ("both_free", "one_free", "always")
 INFLATION_RULES = ("overlap", "centre")  # how the robot radius blocks cells (see ``inflation_footprint``)
 INFLATION_RULE = {"refined": "overlap", "replication": "centre"}
-SMALL_BATCH = 16  # up to this many maps, "auto" runs the planner uncompiled unless numba has it ready
 ENGINES = ("auto", "numba", "numpy")  # batch planner: numba when importable, else scipy
 NO_PATH = "no path from start to goal"
 

@@ -427,5 +427,23 @@ def judge_thermostat(t, temperature, setpoints: Sequence[float], durations_min: 
     return judge.outcome()
 
 
+def warm_up_judge(problem_name: str, config: Any) -> None:
+    """Judge a tiny made-up run once, so that a judge's one-time costs are paid now.
+
+    The robot judge's first ``add`` loads its compiled clearance kernel (0.5-1.7 s on a busy
+    machine). A node that judges samples as they stream in (``sut_adapter``) calls this at
+    start-up: paid in the middle of a run, that pause blocks its only thread while the SUT keeps
+    sending, and a sample queue that overflows reads as a robot standing still.
+    """
+    if problem_name == "robot":
+        RobotJudge(np.zeros((4, 4), dtype=bool), 1.0, (3.5, 3.5), config).add(
+            np.array([0.0, 0.1]), np.array([0.5, 0.6]), np.array([0.5, 0.5]), np.zeros(2))
+    elif problem_name == "vehicle":
+        CarJudge(np.array([[0.0, 0.0], [50.0, 0.0]]), 4.0, config).add(
+            np.array([0.0, 0.1]), np.array([0.0, 0.5]), np.array([-2.0, -2.0]), np.zeros(2), np.ones(2))
+    else:
+        ThermostatJudge([20.0], [1.0], config).add(np.array([0.0, 60.0]), np.array([20.0, 20.0]))
+
+
 __all__ = ["CarJudge", "RobotJudge", "ThermostatJudge", "clearances", "judge_car", "judge_robot",
-           "judge_thermostat"]
+           "judge_thermostat", "warm_up_judge"]

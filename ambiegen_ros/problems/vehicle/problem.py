@@ -6,6 +6,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from ...core.accel import SMALL_BATCH
 from ...core.attributes import Categorical, IntRange
 from ...core.problem import Budget, Evaluation, Problem
 from ...core.scenario import Scenario
@@ -16,9 +17,6 @@ from .replication_car import simulate_replication
 from .replication_road import _cross_section_inside, replication_nodes, replication_points, replication_sections
 from .road import build_spines, element_points, interpolate
 from .validity import _first_half, check_roads
-
-
-SMALL_BATCH = 16  # up to this many roads, evaluate() does not load numba for them (see _config_for)
 
 
 class VehicleProblem(Problem):
