@@ -189,6 +189,9 @@ def summary_table(summary: dict[str, Any]) -> str:
         kinds = {k: v for k, v in summary.get("outcomes", {}).items() if k != "none"}
         by_kind = ", ".join(f"{k} {v}" for k, v in sorted(kinds.items(), key=lambda kv: (-kv[1], kv[0])))
         rows.append(("failures", f"{summary['failures']}" + (f"  (outcomes: {by_kind})" if by_kind else "")))
+        if summary.get("invalid_tests"):
+            rows.append(("invalid tests", f"{summary['invalid_tests']}  (no reference passes them either: "
+                                          "not failures of the system under test)"))
         rows.append(("timeouts", str(summary["timeouts"])))
         rows.append(("errors", f"{summary['errors']}, invalid scenarios {summary.get('invalid', 0)}"))
         if "evaluations" in summary:

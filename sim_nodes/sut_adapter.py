@@ -27,7 +27,12 @@ The problem (validity, the scenario's environment) follows ``config_file`` and `
 (``replication`` | ``refined``; '' = the file's, else ``replication``), like the sim workers; a
 run with another profile gets ``ERROR`` results instead of executions.
 The verdict comes from ``ambiegen_ros.sims.oracles`` with the thresholds in ``oracle.<field>``
-(defaults: the full-model simulators'). No first sample within ``start_timeout`` s, no sample for
+(defaults: the full-model simulators'). A failure counts only when the problem's reference passes
+the same scenario (``ambiegen_ros.sims.reference``, parameter ``reference``, default true): a
+scenario that breaks the static checks (robot: no route keeps the footprint plus a margin clear of
+the walls; vehicle: the competition rules) is answered ``INVALID_TEST`` without being sent; a
+failure on a scenario where the in-process reference (a cautious driver, an ideal controller)
+fails too becomes ``INVALID_TEST``, with the system's kind in ``metrics["sut_failure_kind"]``. No first sample within ``start_timeout`` s, no sample for
 ``silence_timeout`` s, or the run taking longer than ``wall_slack`` x its simulated limit /
 time_scale (+ start_timeout) wall seconds give an ``error`` result saying so.
 
@@ -48,7 +53,7 @@ import numpy as np
 from ambiegen_ros.core.config import ConfigError
 from ambiegen_ros.ros import conversions
 from ambiegen_ros.ros.qos import DEFAULT, LATCHED, STREAM, Qos
-from ambiegen_ros.sims import Outcome
+from ambiegen_ros.sims import Outcome, reference
 from ambiegen_ros.sims.full_model import FullModelExecutor, sim_config
 from ambiegen_ros.sims.oracles import CarJudge, RobotJudge, ThermostatJudge, warm_up_judge
 from ambiegen_ros.nodes import run_node
@@ -128,6 +133,8 @@ class SutAdapter:
         self.silence_timeout = float(p("silence_timeout", 10.0, "seconds without a sample that end a run"))
         self.wall_slack = float(p("wall_slack", 2.0, "a run may take this times its simulated limit / time_scale"))
         self.run_invalid = p("run_invalid", False, "also run scenarios the problem calls invalid")
+        self.reference = bool(p("reference", True, "a failure counts only when the problem's reference passes the "
+                                                   "scenario (false: the old, unchecked verdicts)"))
         self.goal_mode = p("goal_mode", "topic", "topic | action (Nav2 navigate_to_pose, rclpy only)")
         self.action_name = p("action_name", "navigate_to_pose", "Nav2 action for goal_mode action")
         self.tick_period = float(p("tick_period", 0.002, "seconds between adapter turns while a scenario runs"))
@@ -149,6 +156,7 @@ class SutAdapter:
             if value != getattr(defaults, name):
                 options[name] = value
         options["run_invalid"] = bool(self.run_invalid)
+        options["reference"] = self.reference
         self.oracle = sim_config(self.problem_name, options)
         self.problem = load_problem(n, self.problem_name)  # config_file + profile
         self.validity = FullModelExecutor(self.problem, config=self.oracle).validity
@@ -216,6 +224,14 @@ class SutAdapter:
             outcome.metrics = {"outcome": "invalid", "valid": False, "reason": reason}
             self.publish(run_id, sid, outcome)
             return
+        if self.reference:
+            verdict = reference.before(self.problem, scenario, self.oracle)
+            if verdict is not None and not verdict.passed:  # never sent: no system could pass it
+                outcome = reference.invalid_test(verdict)
+                outcome.metrics = {**outcome.metrics, "valid": valid, "reason": reason}
+                self.publish(run_id, sid, outcome)
+                self.node.logger.info(f"scenario {sid}: invalid_test ({outcome.detail})")
+                return
         self.queue.append(Job(run_id, sid, scenario, msg, reason, valid))
 
     def idle(self) -> None:
@@ -437,6 +453,8 @@ class SutAdapter:
         if self._fast is not None:
             self._fast.cancel()
             self._fast = None
+        if self.reference and outcome.failed:  # does the in-process reference pass the same scenario?
+            outcome = reference.certify(outcome, reference.after(self.problem, job.scenario, self.oracle, outcome))
         wall = time.monotonic() - job.started
         outcome.elapsed_sec = wall
         outcome.metrics = {**outcome.metrics, "valid": job.valid, "reason": job.reason, "wall_s": wall,

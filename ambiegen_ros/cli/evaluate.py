@@ -107,8 +107,7 @@ def cmd_show(args: argparse.Namespace) -> int:
 
         outcome = full_model_executor(problem).execute(scenario, seed=args.seed)
         save_execution_plot(problem, scenario, outcome, output)
-        verdict = f"FAILED ({outcome.failure_kind})" if outcome.failed else outcome.failure_kind
-        print(f"{output}  [{verdict}]")
+        print(f"{output}  [{outcome.verdict}]")
         return 0
     save_scenario_plot(problem, scenario, output)
     print(output)

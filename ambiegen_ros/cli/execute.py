@@ -1,8 +1,9 @@
 """`ambiegen execute SCENARIO.json [--json] [--seed S] [--profile P] [--set OPTION=VALUE ...]`.
 
 Runs one scenario on its full-model simulator (no ROS) and prints the verdict; with ``--json``
-exactly one object ``{"problem", "valid", "failed", "failure_kind", "metrics", "profile"}``
-(failure_kind null when the run passed). Bad input (unreadable or malformed scenario, unknown or
+exactly one object ``{"problem", "valid", "failed", "failure_kind", "verdict", "reference",
+"metrics", "profile"}`` (failure_kind null when the run passed; verdict PASS, FAIL(kind) or
+INVALID_TEST(reason): a failure counts only when the problem's reference passes the scenario). Bad input (unreadable or malformed scenario, unknown or
 out-of-domain option) is one line and exit status 2.
 """
 from __future__ import annotations
@@ -26,9 +27,12 @@ def cmd_execute(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(out))
         return 0
-    verdict = "FAILED" if out["failed"] else ("not run (invalid)" if not out["valid"] else "passed")
-    kind = f" [{out['failure_kind']}]" if out["failure_kind"] else ""
-    print(f"{problem.name} [{problem.profile}]: {verdict}{kind}: {outcome.detail}")
+    if outcome.failure_kind == "invalid_test":
+        verdict = "INVALID_TEST (not a failure: no reference passes it either)"
+    else:
+        verdict = "FAILED" if out["failed"] else ("not run (invalid)" if not out["valid"] else "passed")
+        verdict += f" [{out['failure_kind']}]" if out["failure_kind"] else ""
+    print(f"{problem.name} [{problem.profile}]: {verdict}: {outcome.detail}")
     for key, value in out["metrics"].items():
         if key not in ("detail",):
             print(f"  {key}: {value:.4g}" if isinstance(value, float) else f"  {key}: {value}")

@@ -71,6 +71,7 @@ class RemoteExecution:
         self.timeouts = 0
         self.errors = 0
         self.invalid = 0
+        self.invalid_tests = 0  # INVALID_TEST: no reference passes the scenario (never a failure)
         self.foreign_workers: set[str] = set()  # workers of another fidelity profile, never used
 
     def add(self, scenario: Any, meta: ScenarioMeta) -> None:
@@ -133,6 +134,7 @@ class RemoteExecution:
         self.timeouts += outcome.failure_kind == "sim_timeout"
         self.errors += outcome.failure_kind == "error"
         self.invalid += outcome.failure_kind == "invalid_scenario"
+        self.invalid_tests += outcome.failure_kind == "invalid_test"
 
     def on_worker(self, msg: Any) -> None:
         if msg.hardware_id != self.problem.name:

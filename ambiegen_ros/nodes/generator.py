@@ -208,7 +208,9 @@ class Generator:
         if any(i not in self.remote.outcomes for i in self.batch):
             return
         outcomes = self.remote.take(self.batch)  # told once: nothing of a generation is kept after
-        usable = np.array([o.failure_kind not in ("invalid_scenario", "error", "sim_timeout") for o in outcomes])
+        # an INVALID_TEST (no reference passes it either) is no failure to climb towards: F1 0, invalid
+        unusable = ("invalid_scenario", "error", "sim_timeout", "invalid_test")
+        usable = np.array([o.failure_kind not in unusable for o in outcomes])
         f1 = np.array([o.f1 if ok else 0.0 for o, ok in zip(outcomes, usable)])
         reasons = [None if ok else f"{o.failure_kind}: {o.detail}" for o, ok in zip(outcomes, usable)]
         metrics = {"failed": np.array([o.failed for o in outcomes])}
@@ -231,7 +233,8 @@ class Generator:
         r = self.remote
         self.node.logger.info(
             f"run {self.run_id} done: {r.published} scenarios, {r.settled} settled, "
-            f"{r.failures} failures, {r.timeouts} timeouts, {r.errors} errors, {r.invalid} invalid"
+            f"{r.failures} failures, {r.invalid_tests} invalid tests, {r.timeouts} timeouts, {r.errors} errors, "
+            f"{r.invalid} invalid"
         )
         if self.exit_when_done:
             # let reliable writers deliver the last samples before the process ends

@@ -70,8 +70,10 @@ def recorded_scenarios(path: str | Path) -> Recorded:
 def compare(old: Outcome | None, new: Outcome) -> dict[str, Any]:
     """One scenario's regression entry: verdicts, kinds, objectives and whether anything changed."""
     entry = {
-        "new": {"failed": new.failed, "failure_kind": new.failure_kind, "objectives": new.objectives},
-        "old": None if old is None else {"failed": old.failed, "failure_kind": old.failure_kind, "objectives": old.objectives},
+        "new": {"verdict": new.verdict, "failed": new.failed, "failure_kind": new.failure_kind,
+                "objectives": new.objectives},
+        "old": None if old is None else {"verdict": old.verdict, "failed": old.failed, "failure_kind": old.failure_kind,
+                                         "objectives": old.objectives},
     }
     if old is None:
         entry["change"] = "no recorded result"

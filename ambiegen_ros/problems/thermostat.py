@@ -29,6 +29,11 @@ sampler            the code's: raise/lower chain, next temp     the spec's chain
                    or merged into the previous one
 =================  ===========================================  ==========================================
 
+F1 is the paper's RMSE unless ``objective="reference_relative"`` (issue 16): then F1 is the RMSE
+minus that of an ideal controller on the same schedule, both with the surrogate's curves
+(``thermostat_model.ideal_config``), so that schedules no controller can follow (which the RMSE
+rewards) score near 0; ``alpha`` then defaults to 0.3 degC. It costs a second, finer simulation.
+
 Other choices: schedules shorter than 24 h are simulated over their own length; invalid schedules
 get F1 = 0 and zero metrics except ``duration_min``; ``environment`` still simulates them and says
 why they are invalid; element numbers in reasons are 0-based, like ``ScenarioError`` paths.
@@ -45,8 +50,8 @@ from ..core.attributes import ScenarioError
 from ..core.problem import Budget, Evaluation, Problem
 from ..core.scenario import Scenario
 from .thermostat_model import (DUR, DURATION, MODEL, REPLICATION_DURATION, ROOM_MODEL, ROOM_MODELS, SCALAR_BATCH,
-                               TEMP, TEMPERATURE, BatchRun, ThermostatConfig, compiled_loaded, schedule_steps,
-                               simulate_batch, simulate_rows, simulate_schedule)
+                               TEMP, TEMPERATURE, BatchRun, ThermostatConfig, compiled_loaded, ideal_config,
+                               schedule_steps, simulate_batch, simulate_rows, simulate_schedule)
 
 
 # --- the environment ("TC to environment") -------------------------------------------------------
@@ -95,6 +100,8 @@ class ThermostatProblem(Problem):
 
     def __init__(self, config: Any = None, **overrides: Any):
         super().__init__(config, **overrides)
+        if self.config.objective == "reference_relative":
+            self.f1_label = "RMSE above an ideal controller's [degC]"
         n_models = len(self.config.room_models)
         if n_models < self.attributes[MODEL].high:
             raise ScenarioError("config.room_models", f"{n_models} rows", f"{self.attributes[MODEL].high} rows")
@@ -244,48 +251,54 @@ class ThermostatProblem(Problem):
     def evaluate(self, G: np.ndarray, lengths: np.ndarray) -> Evaluation:
         """Restrictions, then the simulation of all valid rows; F1 = RMSE (0 if invalid).
 
+        With ``objective="reference_relative"``, F1 = RMSE minus the RMSE of the surrogate's ideal
+        controller on the same schedule (``thermostat_model.ideal_config``; in ``reference_rmse``):
+        how much worse than an ideal controller the thermostat follows it (negative where it does
+        better), so schedules no controller can follow no longer score high.
+        """
+        G = np.asarray(G, dtype=float)
+        lengths = np.asarray(lengths, dtype=int)
+        valid, reasons, total, scored = self.check(G, lengths)
+        rows = np.flatnonzero(valid)
+        f1, max_error = self._rmse(G, scored, rows, self.config)
+        metrics = {"rmse": f1.copy(), "max_error": max_error, "duration_min": total, "scored_elements": scored}
+        if self.config.objective == "reference_relative":
+            metrics["reference_rmse"], _ = self._rmse(G, scored, rows, ideal_config(self.config))
+            f1 = f1 - metrics["reference_rmse"]
+        return Evaluation(f1=f1, valid=valid, reasons=reasons, metrics=metrics)
+
+    @staticmethod
+    def _rmse(G: np.ndarray, scored: np.ndarray, rows: np.ndarray, config: ThermostatConfig):
+        """RMSE and max |error| of ``rows`` under ``config`` (zeros elsewhere).
+
         With numba, one compiled loop scores every batch; without it, a few schedules (sim nodes,
         CLI) go through the plain loop (~0.3 ms each) since the vectorised one pays ~15 ms of
         per-step numpy overhead whatever the batch size. All three read one curve table and run
         the same operations in the same order, so the results are identical bit for bit.
         """
-        G = np.asarray(G, dtype=float)
-        lengths = np.asarray(lengths, dtype=int)
         P = len(G)
-        valid, reasons, total, scored = self.check(G, lengths)
         f1 = np.zeros(P)
         max_error = np.zeros(P)
-        rows = np.flatnonzero(valid)
         # a few schedules do not load numba (its import costs more than they do), unless it is loaded already
         compiled = None
-        if len(rows) and self.config.engine != "numpy" and (len(rows) > SCALAR_BATCH or compiled_loaded()):
-            compiled = simulate_rows(G[rows], scored[rows], self.config)
+        if len(rows) and config.engine != "numpy" and (len(rows) > SCALAR_BATCH or compiled_loaded()):
+            compiled = simulate_rows(G[rows], scored[rows], config)
         if compiled is not None:
             f1[rows], max_error[rows] = compiled
         elif 0 < len(rows) <= SCALAR_BATCH:
             for i in rows:
                 m = scored[i]
-                goals, models, starts = schedule_steps(G[i, :m, TEMP], G[i, :m, DUR], G[i, :m, MODEL], self.config)
-                _, err = simulate_schedule(goals, models, self.config, starts=starts)
+                goals, models, starts = schedule_steps(G[i, :m, TEMP], G[i, :m, DUR], G[i, :m, MODEL], config)
+                _, err = simulate_schedule(goals, models, config, starts=starts)
                 sumsq = 0.0
                 for e in err.tolist():  # summed in step order, as the vectorised loop does
                     sumsq += e * e
                 f1[i] = math.sqrt(sumsq / max(len(err), 1))
                 max_error[i] = float(np.max(np.abs(err))) if len(err) else 0.0
         elif len(rows):
-            run = simulate_batch(G[rows], scored[rows], self.config)
+            run = simulate_batch(G[rows], scored[rows], config)
             f1[rows], max_error[rows] = run.rmse, run.max_error
-        return Evaluation(
-            f1=f1,
-            valid=valid,
-            reasons=reasons,
-            metrics={
-                "rmse": f1.copy(),
-                "max_error": max_error,
-                "duration_min": total,
-                "scored_elements": scored,
-            },
-        )
+        return f1, max_error
 
     # --- TC to environment ----------------------------------------------------------------------
     def environment(self, scenario: Scenario) -> Schedule:

@@ -297,14 +297,18 @@ def outcome_from_message(msg: Any) -> Outcome:
     values = require_finite(msg.objectives, "objectives")
     objectives = {str(n): float(v) for n, v in zip(msg.objective_names, values)}
     traj = path_points(msg.trajectory)
+    metrics = {kv.key: kv.value for kv in msg.metrics}
+    checked = metrics.get("reference_check")
     return Outcome(
         objectives=objectives,
         failed=bool(msg.failed),
         failure_kind=kind,
         detail=str(msg.detail),
-        metrics={kv.key: kv.value for kv in msg.metrics},
+        metrics=metrics,
         trajectory=traj if len(traj) else None,
         elapsed_sec=float(msg.elapsed_sec),
+        reference=None if checked is None else {"check": checked, "passed": kind != "invalid_test",
+                                                "reason": str(msg.detail) if kind == "invalid_test" else ""},
     )
 
 

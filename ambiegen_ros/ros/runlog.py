@@ -68,6 +68,7 @@ def summarize(path: str | Path, run_id: str | None = None) -> dict[str, Any]:
         "timeouts": kinds.get("sim_timeout", 0),
         "errors": kinds.get("error", 0),
         "invalid": kinds.get("invalid_scenario", 0),
+        "invalid_tests": kinds.get("invalid_test", 0),
         "outcomes": dict(sorted(kinds.items())),
         "duplicate_results": duplicates,
         "unresolved": unresolved,

@@ -24,6 +24,13 @@ at the SBST risk level (corners near the grip limit, reacts to a bend about 0.5 
 1 % of Markov-sampled valid roads fail, and a tight right-hand hairpin after a long straight
 does; gentle roads pass.
 
+Reference (``sims.reference.vehicle``, on unless ``reference=False``): a road is driven only if
+it keeps the competition rules on the road driven (both lanes inside the map with its margin, no
+overlap of the road with itself, minimum radius; never a road the replication builder cut at the
+map edge), else INVALID_TEST; a failure counts only when the cautious driver above
+(``reference_corner_lat_accel``, ``reference_preview_time``, the rest of the config unchanged)
+completes the same road, else INVALID_TEST.
+
 Oracle: out of lane when more than ``oob_tolerance`` of the bounding box's area lies outside the
 right-lane polygon (checked every step, vectorised over chunks of steps); stall when the car moves
 less than ``stall_distance`` in ``stall_time``; success within ``goal_distance`` of the last road
@@ -83,13 +90,18 @@ class CarSimConfig:
     timeout_speed: float = 3.0  # time limit adds road length / this [s]
     check_every: int = 20  # steps per vectorised out-of-lane check
     run_invalid: bool = False  # also simulate roads the problem calls invalid
+    # reference check (``sims.reference.vehicle``): the competition rules before, a cautious driver after
+    reference: bool = True  # check each scenario with the problem's reference; false = the old, unchecked verdicts
+    reference_corner_lat_accel: float = 4.0  # the cautious driver's cornering target [m/s^2]
+    reference_preview_time: float = 1.5  # how far ahead the cautious driver looks for curves [s]
 
     def __post_init__(self):
         if self.controller not in CONTROLLERS:
             raise ScenarioError("option.controller", f"unknown controller {self.controller!r}", "|".join(CONTROLLERS))
         for name in ("wheelbase", "length", "width", "max_steer_deg", "max_steer_rate_deg", "grip",
                      "speed_limit_kmh", "accel", "brake", "corner_lat_accel", "dt", "stall_distance",
-                     "stall_time", "goal_distance", "timeout_speed", "lookahead_min", "speed_gain"):
+                     "stall_time", "goal_distance", "timeout_speed", "lookahead_min", "speed_gain",
+                     "reference_corner_lat_accel"):
             if not getattr(self, name) > 0:
                 raise ScenarioError(f"option.{name}", "must be > 0")
         if not 0.0 <= self.oob_tolerance <= 1.0:
@@ -98,6 +110,9 @@ class CarSimConfig:
             raise ScenarioError("option.check_every", "must be >= 1")
         if self.lane_width < 0:
             raise ScenarioError("option.lane_width", "must be >= 0 (0 = the problem's)")
+        for name in ("preview_time", "reference_preview_time"):
+            if not getattr(self, name) >= 0:
+                raise ScenarioError(f"option.{name}", "must be >= 0")
 
 
 # --- road geometry -------------------------------------------------------------------------------
@@ -116,10 +131,10 @@ class Lane:
 
 def right_lane(road: np.ndarray, lane_width: float) -> Lane:
     """Offset the road centre line half a lane (and a lane) to the right; build the lane polygon."""
+    from ..problems.vehicle.validity import left_normals  # here: the robot's and room's runs skip the vehicle package
+
     road = np.asarray(road, dtype=float)
-    tangent = np.gradient(road, axis=0)
-    tangent /= np.maximum(np.hypot(tangent[:, 0], tangent[:, 1]), 1e-12)[:, None]
-    left = np.column_stack([-tangent[:, 1], tangent[:, 0]])
+    left = left_normals(road)
     centre = road - left * (lane_width / 2)
     edge = road - left * lane_width
     quads = np.stack([road[:-1], road[1:], edge[1:], edge[:-1]], axis=1)
@@ -321,20 +336,51 @@ def _road_arc(lane: Lane, lane_s: float) -> float:
     return float(np.interp(lane_s, lane.s, lane.road_s))
 
 
-def road_of(problem: Any, scenario: Any) -> tuple[np.ndarray, bool, str | None]:
-    """The interpolated centre line of a vehicle scenario, its validity and the broken rule."""
+@dataclass
+class RoadCheck:
+    """One scenario's road as the car drives it, with what the problem's rules say about it."""
+
+    road: np.ndarray  # (M, 2) interpolated centre line (replication: the spline nodes about 8 m apart)
+    valid: bool
+    reason: str | None
+    min_radius: float  # the profile's sharpness measure [m]
+    elements: int  # elements of the scenario
+    elements_built: int  # elements the road builder kept (replication: it cuts a road at the map edge)
+
+    @property
+    def cut(self) -> bool:
+        return self.elements_built < self.elements
+
+
+def road_check(problem: Any, scenario: Any) -> RoadCheck:
+    """Build a vehicle scenario's road and check it with the problem's rules (no surrogate drive)."""
     from ..problems.vehicle import check_roads
 
     G, lengths = problem.codec.split(problem.codec.to_row(scenario))
-    _, _, nodes, n_nodes = problem.roads(G, lengths)
-    valid, reasons, _, _ = check_roads(nodes, n_nodes, problem.config)
-    return np.asarray(nodes, dtype=float)[: int(n_nodes[0])], bool(valid[0]), reasons[0]
+    _, n_spine, nodes, n_nodes = problem.roads(G, lengths)
+    valid, reasons, _, min_radius = check_roads(nodes, n_nodes, problem.config)
+    elements = int(lengths[0])
+    # replication: the builder's points are the start and one per element kept; refined never cuts
+    built = int(n_spine[0]) - 1 if problem.config.profile == "replication" else elements
+    return RoadCheck(np.asarray(nodes, dtype=float)[: int(n_nodes[0])], bool(valid[0]), reasons[0],
+                     float(min_radius[0]), elements, built)
 
 
-def simulate(problem: Any, scenario: Any, config: CarSimConfig | None = None, seed: int = 0) -> Outcome:
-    """Execute one road on the full-model car and judge it with the SBST out-of-lane oracle."""
+def road_of(problem: Any, scenario: Any) -> tuple[np.ndarray, bool, str | None]:
+    """The interpolated centre line of a vehicle scenario, its validity and the broken rule."""
+    check = road_check(problem, scenario)
+    return check.road, check.valid, check.reason
+
+
+def simulate(problem: Any, scenario: Any, config: CarSimConfig | None = None, seed: int = 0,
+             road: np.ndarray | None = None) -> Outcome:
+    """Execute one road on the full-model car and judge it with the SBST out-of-lane oracle.
+
+    ``road``: the scenario's centre line when the caller built it already (the reference check did).
+    """
     cfg = config or CarSimConfig()
-    road, _, _ = road_of(problem, scenario)
+    if road is None:
+        road = road_of(problem, scenario)[0]
     run = drive(road, float(problem.config.lane_width), cfg, seed=seed)
     tl = run["timeline"]
     metrics = {k: run[k] for k in ("outcome", "time", "max_oob", "max_lateral_offset", "oob_arc_length",
@@ -354,4 +400,5 @@ def simulate(problem: Any, scenario: Any, config: CarSimConfig | None = None, se
     )
 
 
-__all__ = ["CarSimConfig", "Lane", "box_corners", "drive", "oob_fraction", "right_lane", "road_of", "simulate"]
+__all__ = ["CarSimConfig", "Lane", "RoadCheck", "box_corners", "drive", "oob_fraction", "right_lane", "road_check",
+           "road_of", "simulate"]

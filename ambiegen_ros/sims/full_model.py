@@ -26,7 +26,7 @@ import numpy as np
 from ..core.attributes import ScenarioError
 from ..core.scenario import Scenario
 from ..core.problem import Problem
-from . import car, robot, room
+from . import car, reference, robot, room
 from .outcome import Outcome
 
 SIMULATORS: dict[str, tuple[type, Callable[..., Outcome]]] = {
@@ -137,10 +137,24 @@ class FullModelExecutor:
             outcome = Outcome.rejected(f"restriction broken: {reason}")
             outcome.metrics = {"outcome": "invalid", "valid": False, "reason": reason}
         else:
-            outcome = self._simulate(self.problem, scenario, self.config, seed=int(seed))
+            outcome = self._checked_run(scenario, int(seed))
             outcome.metrics = {**outcome.metrics, "valid": valid, "reason": reason}
         outcome.elapsed_sec = time.perf_counter() - start
         return outcome
+
+    def _checked_run(self, scenario: Scenario, seed: int) -> Outcome:
+        """Simulate, with the problem's reference checks around it (``sims.reference``)."""
+        if not getattr(self.config, "reference", True):
+            return self._simulate(self.problem, scenario, self.config, seed=seed)
+        first = reference.before(self.problem, scenario, self.config)
+        if first is not None and not first.passed:
+            return reference.invalid_test(first)
+        outcome = self._simulate(self.problem, scenario, self.config, seed=seed,
+                                 **(first.evidence if first is not None else {}))
+        if outcome.failed:  # a problem without a reference run (robot) keeps its static check's word
+            return reference.certify(outcome, reference.after(self.problem, scenario, self.config, outcome, seed)
+                                     or first)
+        return reference.certify(outcome, first)
 
     def config_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self.config)

@@ -56,6 +56,8 @@ def result_json(problem_name: str, outcome: Any) -> dict[str, Any]:
         "valid": bool(outcome.metrics.get("valid", outcome.failure_kind != "invalid_scenario")),
         "failed": bool(outcome.failed),
         "failure_kind": None if outcome.failure_kind == "none" else outcome.failure_kind,
+        "verdict": outcome.verdict,
+        "reference": getattr(outcome, "reference", None),
         "metrics": plain({**outcome.metrics, "detail": outcome.detail}),
     }
 

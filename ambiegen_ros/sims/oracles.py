@@ -85,8 +85,10 @@ class RobotJudge(_Judge):
     heading of the motion between samples stands in. ``stall`` (optional, per sample): the robot's
     own stall flag (the ND driver gave up), as Player's position2d data carries it; without it a
     robot that gave up and stands still is caught by the loitering monitor instead. The route
-    (waypoint arrivals, the time limit) is planned from the first sample's cell like the
-    simulator's, with the problem's ``diagonal`` rule, unless ``route_length`` is given.
+    (waypoint arrivals, the time limit) is planned from the first sample's cell by the simulator's
+    ``robot.plan_route``: the clearance route (``sims.reference.robot``) unless the config says
+    ``reference=false`` (then the old A* with the problem's ``diagonal`` rule); ``route_length``
+    overrides its length for the time limit.
     """
 
     def __init__(self, grid: np.ndarray, resolution: float, goal_xy: tuple[float, float],

@@ -18,7 +18,11 @@ FAILURE_KINDS = {
     "error": 7,
     "sim_timeout": 8,
     "loiter": 9,
+    "invalid_test": 10,
 }
+# Kinds that say the system under test failed (``Outcome.failed``); every other kind says nothing
+# about it: ``none`` passed, ``invalid_test`` is a scenario no reference passes (never a failure).
+SUT_FAILURES = ("collision", "stall", "timeout", "out_of_lane", "requirement", "loiter")
 FAILURE_NAMES = {code: name for name, code in FAILURE_KINDS.items()}
 
 
@@ -39,6 +43,8 @@ class Outcome:
     # (x, y in metres; thermostat: hour, temperature of the largest error) for the plots.
     timeline: dict[str, np.ndarray] | None = None
     failure_point: tuple[float, float] | None = None
+    # The reference check (``sims.reference``): {"check", "passed", "reason"}; None = not checked.
+    reference: dict[str, Any] | None = None
 
     def __post_init__(self) -> None:
         if self.failure_kind not in FAILURE_KINDS:
@@ -48,6 +54,17 @@ class Outcome:
     def f1(self) -> float:
         """The first objective: what the in-the-loop search maximises."""
         return float(next(iter(self.objectives.values()), 0.0))
+
+    @property
+    def verdict(self) -> str:
+        """PASS, FAIL(kind), INVALID_TEST(reason), or the kind in capitals (INVALID_SCENARIO, ERROR, ...)."""
+        if self.failure_kind == "none":
+            return "PASS"
+        if self.failed:
+            return f"FAIL({self.failure_kind})"
+        if self.failure_kind == "invalid_test":
+            return f"INVALID_TEST({self.detail})"
+        return self.failure_kind.upper()
 
     @classmethod
     def rejected(cls, detail: str, kind: str = "invalid_scenario") -> "Outcome":

@@ -7,12 +7,19 @@ of the surrogate's path-length fitness. The world (body, contact with walls, las
 ``sims.robot_world``; this module is the robot's run: its route, its local planner and the
 monitors that judge it.
 
-* *Route*: A* (``problems.robot.astar``) on the grid inflated by ``radius``, with the problem's
-  diagonal rule (the route its surrogate scored; ``route_diagonal`` overrides it: the replication
-  profile's rule ``always`` also steps diagonally between two wall cells that touch at a corner,
-  a gap no robot passes), simplified by Ramer-Douglas-Peucker (``rdp_epsilon``); a controller
-  sends the waypoints one by one and moves on within ``waypoint_tolerance`` of the current one,
-  like the paper's waypoint follower. No route leaves the robot standing (``outcome = "no_route"``).
+* *Route* (``plan_route``): with ``reference`` (default), the clearance route of
+  ``sims.reference.robot``: the shortest route that keeps the footprint's circumscribed radius
+  (0.26 m) plus ``clearance_margin`` (0.1 m) from every wall, planned on a ``route_resolution``
+  (0.1 m) grid and pulled tight, in every profile; a map without one is an INVALID_TEST before
+  anything runs (``sims.full_model``), and the executor hands the route it checked to
+  ``simulate(route=...)``. With ``reference=false``, the old route: A* (``problems.robot.astar``) on
+  the grid inflated by ``radius``, with the problem's diagonal rule (the route its surrogate
+  scored; ``route_diagonal`` overrides it: the replication profile's rule ``always`` also steps
+  diagonally between two wall cells that touch at a corner, a gap no robot passes), simplified by
+  Ramer-Douglas-Peucker (``rdp_epsilon``). The surrogate keeps its A* either way (RQ1/RQ2).
+  A controller sends the waypoints one by one and moves on within ``waypoint_tolerance`` of the
+  current one, like the paper's waypoint follower. No route leaves the robot standing
+  (``outcome = "no_route"``).
 * *Local planner* (``planner``): ``"nd"`` (default) is the Nearness Diagram method with Player's
   ``nd`` driver around it and the paper's ``player.cfg`` numbers (``sims.nearness_diagram``):
   0.3 m/s and 30 deg/s at most, 0.1 m/s and 10 deg/s at least, its own goal tolerance 0.1 m
@@ -60,6 +67,7 @@ from ..core.attributes import ScenarioError
 from ..problems.robot import DIAGONAL_RULES, astar, inflate
 from .nearness_diagram import NDDriver, NDParams, NearnessDiagram
 from .outcome import Outcome
+from .reference.robot import route_for
 from .robot_world import (ENGINES, PIONEER2DX, PIONEER2DX_LENGTH, PIONEER2DX_ORIGIN_X, PIONEER2DX_WIDTH, WORLD_FIELDS,
                           RobotWorld, WallGeometry, _clip, cast_rays, clearances, pad_grid, pioneer2dx_footprint,
                           wall_distance)
@@ -86,7 +94,7 @@ class RobotSimConfig:
     and monitors)."""
 
     planner: str = "nd"  # nd | gap
-    radius: float = 0.3  # route inflation; the gap planner's disc [m]
+    radius: float = 0.3  # the gap planner's disc; the old route's A* inflation (reference=false) [m]
     cruise_speed: float = 0.3  # top speed of either planner (ND's max_speed) and of the time limit [m/s]
     max_speed: float = 0.8  # hard limit of the base [m/s]
     max_turn_rate: float = 1.0  # [rad/s]
@@ -99,8 +107,11 @@ class RobotSimConfig:
     beams: int = 181
     laser_noise: float = 0.01  # standard deviation of range noise [m]; 0 = exact
     # route
-    route_diagonal: str | None = None  # A* diagonal rule of the route: None = the problem's (the route it scored)
-    rdp_epsilon: float = 0.5  # Ramer-Douglas-Peucker tolerance [m]
+    reference: bool = True  # check each scenario with the problem's reference; false = the old, unchecked verdicts
+    clearance_margin: float = 0.1  # the clearance route keeps the footprint's radius + this from every wall [m]
+    route_resolution: float = 0.1  # fine grid of the clearance route [m]
+    route_diagonal: str | None = None  # old route (reference=false): A* diagonal rule; None = the problem's
+    rdp_epsilon: float = 0.5  # old route: Ramer-Douglas-Peucker tolerance [m]
     waypoint_tolerance: float = WAYPOINT_TOLERANCE  # the controller moves on this close to a waypoint [m]
     # nearness diagram (Player's nd driver, the paper's player.cfg)
     nd_turn_rate_deg: float = 30.0  # max_speed[1] [deg/s]
@@ -143,12 +154,12 @@ class RobotSimConfig:
                      "dt", "laser_range", "fov_deg", "lookahead", "turn_gain", "slow_distance",
                      "goal_tolerance", "stall_radius", "stall_time", "timeout", "waypoint_tolerance",
                      "nd_turn_rate_deg", "nd_goal_tolerance", "avoid_dist", "stuck_time", "stuck_distance",
-                     "stuck_angle_deg"):
+                     "stuck_angle_deg", "route_resolution"):
             if not getattr(self, name) > 0:
                 raise ScenarioError(f"option.{name}", "must be > 0")
         for name in ("laser_noise", "rdp_epsilon", "margin", "squeeze_margin", "squeeze_lookahead", "squeeze_speed",
                      "nd_min_speed", "nd_min_turn_rate_deg", "safety_dist", "proximity", "timeout_route_factor",
-                     "timeout_margin"):
+                     "timeout_margin", "clearance_margin"):
             if getattr(self, name) < 0:
                 raise ScenarioError(f"option.{name}", "must be >= 0")
         if self.beams < 3 or self.directions < 3:
@@ -402,7 +413,15 @@ def nd_driver(cfg: RobotSimConfig) -> NDDriver:
 # --- the simulation ------------------------------------------------------------------------------
 def plan_route(grid: np.ndarray, resolution: float, start: tuple[int, int], goal: tuple[int, int],
                config: RobotSimConfig, diagonal: str = "both_free") -> tuple[np.ndarray, float]:
-    """Waypoints (K, 2) in metres (RDP-simplified A* route for the robot's radius) and the route length."""
+    """The route the robot drives between two cells: waypoints (K, 2) in metres and its length.
+
+    With ``config.reference`` the clearance route (``sims.reference.robot``; its polyline length);
+    else the old one, A* for ``config.radius`` with the ``diagonal`` rule, RDP-simplified (the A*
+    length). No route: no waypoints, length inf.
+    """
+    if config.reference:
+        route = route_for(grid, resolution, start, goal, config)
+        return route.waypoints, route.length
     planning = inflate(grid, config.radius, resolution)
     length, cells = astar(planning, start, goal, diagonal)
     if not cells:
@@ -412,11 +431,17 @@ def plan_route(grid: np.ndarray, resolution: float, start: tuple[int, int], goal
 
 
 def navigate(grid: np.ndarray, resolution: float, start: tuple[int, int], goal: tuple[int, int],
-             config: RobotSimConfig | None = None, seed: int = 0, diagonal: str = "both_free") -> dict[str, Any]:
-    """Drive from cell ``start`` to cell ``goal`` on occupancy ``grid`` ([y, x]) along the planned
-    route (``plan_route``, A* with the problem's ``diagonal`` rule); returns ``drive``'s record."""
+             config: RobotSimConfig | None = None, seed: int = 0, diagonal: str = "both_free",
+             route: np.ndarray | None = None) -> dict[str, Any]:
+    """Drive from cell ``start`` to cell ``goal`` on occupancy ``grid`` ([y, x]) along ``route``
+    ((K, 2) metres, from the start's centre; default ``plan_route``'s, with the problem's
+    ``diagonal`` rule for the old route); returns ``drive``'s record."""
     cfg = config or RobotSimConfig()
-    waypoints, route_length = plan_route(np.asarray(grid, dtype=bool), resolution, start, goal, cfg, diagonal)
+    if route is None:
+        waypoints, route_length = plan_route(np.asarray(grid, dtype=bool), resolution, start, goal, cfg, diagonal)
+    else:
+        waypoints = np.asarray(route, dtype=float).reshape(-1, 2)
+        route_length = float(np.hypot(*np.diff(waypoints, axis=0).T).sum()) if len(waypoints) else math.inf
     start_xy = ((start[0] + 0.5) * resolution, (start[1] + 0.5) * resolution)
     goal_xy = ((goal[0] + 0.5) * resolution, (goal[1] + 0.5) * resolution)
     run = drive(grid, resolution, start_xy, goal_xy, waypoints, cfg, seed, cfg.time_limit(route_length))
@@ -508,13 +533,18 @@ def drive(grid: np.ndarray, resolution: float, start_xy: tuple[float, float], go
     }
 
 
-def simulate(problem: Any, scenario: Any, config: RobotSimConfig | None = None, seed: int = 0) -> Outcome:
-    """Execute one robot scenario on the full model and judge it with the paper's monitors."""
+def simulate(problem: Any, scenario: Any, config: RobotSimConfig | None = None, seed: int = 0,
+             route: np.ndarray | None = None) -> Outcome:
+    """Execute one robot scenario on the full model and judge it with the paper's monitors.
+
+    ``route`` ((K, 2) metres): the route to drive, as the reference check planned it (the
+    clearance route); default ``plan_route``'s for the config.
+    """
     cfg = config or RobotSimConfig()
     env = problem.environment(scenario)
     pc = problem.config
     run = navigate(env.grid, env.resolution, pc.start, pc.goal, cfg, seed=seed,
-                   diagonal=cfg.route_diagonal or pc.diagonal)
+                   diagonal=cfg.route_diagonal or pc.diagonal, route=route)
     timeline = run["timeline"]
     metrics = {
         "outcome": run["outcome"],
@@ -523,6 +553,7 @@ def simulate(problem: Any, scenario: Any, config: RobotSimConfig | None = None, 
         "path_length": run["path_length"],
         "min_clearance": run["min_clearance"],
         "route_length": run["route_length"],
+        "route": "clearance" if cfg.reference else "astar",
         "surrogate_path_length": env.path_length if env.reachable else None,
         "waypoints": int(len(run["waypoints"])),
         "waypoints_reached": run["waypoints_reached"],

@@ -17,7 +17,9 @@ this integrates the room in continuous time with a fine step ``dt``:
   is a duty cycle over ``pwm_period``, realised in whole control ticks (anti-windup by clamping
   the integral). With the default gains it does about as well as on/off (mean RMSE 0.59 vs 0.56
   degC on sampled schedules): the fitted curves restart at every switch, which rewards long
-  phases.
+  phases. ``ideal`` - the reference (``sims.reference.thermostat``): full power while the true
+  temperature is below the goal, off at or above it, decided every ``dt``; no noise, no
+  quantisation, no hysteresis (``ideal_config``: the on/off rule with those settings).
 
 Oracle: the RMSE between the true room temperature and the scheduled goal, sampled after every
 ``dt`` over the whole schedule, must not exceed ``requirement_rmse`` (1 degC, the paper's
@@ -27,7 +29,7 @@ above/below the goal band, heater duty, switch count.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Sequence
 
 import numpy as np
@@ -35,7 +37,7 @@ import numpy as np
 from ..core.attributes import ScenarioError
 from .outcome import Outcome
 
-CONTROLLERS = ("onoff", "pid")
+CONTROLLERS = ("onoff", "pid", "ideal")
 
 
 @dataclass(frozen=True)
@@ -46,7 +48,7 @@ class RoomSimConfig:
     model_step: float = 180.0  # the step the room curves were fitted on [s]
     sensor_noise: float = 0.05  # standard deviation [degC]; 0 = exact
     sensor_resolution: float = 0.1  # quantisation [degC]; 0 = none
-    controller: str = "onoff"  # onoff | pid
+    controller: str = "onoff"  # onoff | pid | ideal (the reference controller)
     control_period: float = 60.0  # controller runs this often [s] (a multiple of dt)
     hysteresis: float = 0.1  # on/off band half-width [degC]
     kp: float = 1.0  # PID gains on degC error -> duty (tuned on sampled schedules)
@@ -56,6 +58,7 @@ class RoomSimConfig:
     requirement_rmse: float = 1.0  # [degC]
     band: float = 0.5  # metrics: time spent more than this above / below the goal [degC]
     run_invalid: bool = False  # also simulate schedules the problem calls invalid
+    reference: bool = True  # check each scenario with the problem's reference; false = the old, unchecked verdicts
 
     def __post_init__(self):
         if self.controller not in CONTROLLERS:
@@ -69,6 +72,15 @@ class RoomSimConfig:
         ratio = self.control_period / self.dt
         if abs(ratio - round(ratio)) > 1e-9:
             raise ScenarioError("option.control_period", "must be a multiple of dt", f"k * {self.dt:g} s")
+        if not isinstance(self.reference, bool):
+            raise ScenarioError("option.reference", f"expected true or false, got {self.reference!r}", "true|false")
+
+
+def ideal_config(config: RoomSimConfig) -> RoomSimConfig:
+    """The ideal controller as settings of the on/off rule: with no hysteresis it is ON while the
+    temperature is below the goal and OFF at or above it; reading the true temperature every ``dt``."""
+    return replace(config, controller="onoff", hysteresis=0.0, sensor_noise=0.0, sensor_resolution=0.0,
+                   control_period=config.dt)
 
 
 def heat(setpoints: Sequence[float], durations_min: Sequence[float], models: Sequence[int],
@@ -76,6 +88,8 @@ def heat(setpoints: Sequence[float], durations_min: Sequence[float], models: Seq
          initial_temperature: float | None = None) -> dict[str, Any]:
     """Run one schedule (goal, minutes, 1-based room model per element); returns the record."""
     cfg = config or RoomSimConfig()
+    if cfg.controller == "ideal":
+        cfg = ideal_config(cfg)
     rng = np.random.default_rng(seed)
     dt = cfg.dt
     ends = np.cumsum(np.asarray(durations_min, dtype=float) * 60.0)
@@ -189,7 +203,7 @@ def simulate(problem: Any, scenario: Any, config: RoomSimConfig | None = None, s
     )
 
 
-__all__ = ["RoomSimConfig", "heat", "schedule_of", "simulate"]
+__all__ = ["RoomSimConfig", "heat", "ideal_config", "schedule_of", "simulate"]
 
 
 class SteppedRoom:
@@ -197,11 +211,11 @@ class SteppedRoom:
     step (so they can change live); same controller, noise stream and integration."""
 
     def __init__(self, config: RoomSimConfig, room_models, initial_temperature: float, seed: int = 0):
-        self.cfg = config
+        self.cfg = ideal_config(config) if config.controller == "ideal" else config
         self.models = np.asarray(room_models, dtype=float)
         self.rng = np.random.default_rng(seed)
-        self.every = int(round(config.control_period / config.dt))
-        self.pwm_steps = max(1, int(round(config.pwm_period / config.dt)))
+        self.every = int(round(self.cfg.control_period / self.cfg.dt))
+        self.pwm_steps = max(1, int(round(self.cfg.pwm_period / self.cfg.dt)))
         self.T = float(initial_temperature)
         self.k = 0
         self.on = True

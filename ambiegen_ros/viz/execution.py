@@ -18,6 +18,8 @@ import numpy as np  # noqa: E402
 def _title(problem: Any, outcome: Any) -> str:
     if outcome.failure_kind == "invalid_scenario":
         return f"{problem.name}: not executed ({outcome.detail})"
+    if outcome.failure_kind == "invalid_test":
+        return f"{problem.name}: INVALID TEST, not a failure\n{outcome.detail}"
     verdict = f"FAILED: {outcome.failure_kind}" if outcome.failed else "passed"
     return f"{problem.name} full model {verdict}\n{outcome.detail}"
 
@@ -36,11 +38,14 @@ def _robot(problem, scenario, outcome, ax) -> None:
     h, w = env.grid.shape
     ax.imshow(env.grid.astype(float), cmap="Greys", vmin=0, vmax=1, origin="lower",
               extent=(0, w * res, 0, h * res), interpolation="nearest")
-    radius = float((outcome.metrics or {}).get("radius", RobotSimConfig().radius))
-    waypoints, _ = plan_route(env.grid, res, problem.config.start, problem.config.goal,
-                              RobotSimConfig(radius=radius), problem.config.diagonal)
+    metrics = outcome.metrics or {}
+    defaults = RobotSimConfig()
+    config = RobotSimConfig(radius=float(metrics.get("radius", defaults.radius)),
+                            reference=metrics.get("route", "clearance") != "astar",  # the route it drove
+                            clearance_margin=float(metrics.get("reference_clearance_margin_m", defaults.clearance_margin)))
+    waypoints, _ = plan_route(env.grid, res, problem.config.start, problem.config.goal, config, problem.config.diagonal)
     if len(waypoints):
-        ax.plot(waypoints[:, 0], waypoints[:, 1], "--o", color="tab:blue", lw=1, ms=3, label="route (RDP waypoints)")
+        ax.plot(waypoints[:, 0], waypoints[:, 1], "--o", color="tab:blue", lw=1, ms=3, label="route")
     traj = outcome.trajectory
     if traj is not None and len(traj):
         t = outcome.timeline["t"] if outcome.timeline else np.arange(len(traj))

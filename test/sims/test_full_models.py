@@ -235,9 +235,11 @@ def test_u_shaped_pocket_between_robot_and_goal_traps_the_nd_robot():
 
 def test_a_body_meeting_a_wall_stalls_there():
     """A planner that believes the robot is a 0.1 m disc and sees only 60 deg ahead clips the
-    corridor's corner: the body stops at the contact (Stage's stall)."""
+    corridor's corner: the body stops at the contact (Stage's stall). On the old route (A* through
+    the corridor's cell centres, ``reference=False``): on the clearance route, which passes the
+    bends' inner corners at 0.36 m, the earlier gap planner's 0.35 m disc loiters at a bend."""
     cfg = robot.RobotSimConfig(planner="gap", radius=0.1, margin=0.0, squeeze_margin=0.0, fov_deg=60, beams=61,
-                               directions=31)
+                               directions=31, reference=False)
     g = corridor_map()
     out = robot.navigate(g, 1.0, (5, 5), (24, 24), cfg)
     assert out["failure_kind"] == "stall" and out["stall_cause"] == "contact", out["detail"]
@@ -247,15 +249,18 @@ def test_a_body_meeting_a_wall_stalls_there():
     before = zip(tl["x"][:-1:50], tl["y"][:-1:50], tl["yaw"][:-1:50])
     assert all(brute_body_distance(g, x, y, a) > 0 for x, y, a in before)
     wide = robot.navigate(g, 1.0, (5, 5), (24, 24),
-                          robot.RobotSimConfig(planner="gap", fov_deg=60, beams=61, directions=31))
+                          robot.RobotSimConfig(planner="gap", fov_deg=60, beams=61, directions=31, reference=False))
     assert wide["outcome"] == "success"  # the same sensor with a disc that covers the body
 
 
 def test_no_route_and_enclosed_goal_stall():
-    """No route: the robot never starts; after the loitering window without any motion, a stall."""
-    wide = robot.navigate(corridor_map(), 1.0, (5, 5), (24, 24), robot.RobotSimConfig(radius=0.55))
-    assert wide["outcome"] == "no_route" and wide["failure_kind"] == "stall" and wide["stall_cause"] == "no_route"
-    assert wide["path_length"] == 0.0 and wide["time"] == pytest.approx(10.0)
+    """No route: the robot never starts; after the loitering window without any motion, a stall.
+    The 1 m corridor has no route keeping 0.26 + 0.3 m from its walls, nor an A* route for a 0.55 m
+    robot (the old route, ``reference=False``)."""
+    for cfg in (robot.RobotSimConfig(clearance_margin=0.3), robot.RobotSimConfig(radius=0.55, reference=False)):
+        wide = robot.navigate(corridor_map(), 1.0, (5, 5), (24, 24), cfg)
+        assert wide["outcome"] == "no_route" and wide["failure_kind"] == "stall" and wide["stall_cause"] == "no_route"
+        assert wide["path_length"] == 0.0 and wide["time"] == pytest.approx(10.0)
     g = box()
     g[20, 18:27] = g[27, 18:27] = True
     g[20:28, 18] = g[20:28, 26] = True
@@ -311,7 +316,7 @@ def test_robot_oracle_gives_the_simulator_verdicts():
         (corridor_map(), (5, 5), (24, 24), robot.RobotSimConfig(planner="gap", radius=0.1, margin=0.0,
                                                                 squeeze_margin=0.0, fov_deg=60, beams=61,
                                                                 directions=31)),
-        (corridor_map(), (5, 5), (24, 24), robot.RobotSimConfig(radius=0.55)),
+        (corridor_map(), (5, 5), (24, 24), robot.RobotSimConfig(clearance_margin=0.3)),  # no route
         (corridor_map(), (5, 5), (24, 24), robot.RobotSimConfig(planner="gap", radius=0.45)),
         (door_map(), (5, 5), (24, 24), robot.RobotSimConfig(timeout=20.0, **FIXED)),
     ]
@@ -338,7 +343,9 @@ def test_robot_oracle_gives_the_simulator_verdicts():
 
 
 # --- car ---------------------------------------------------------------------------------------
-HAIRPIN = [("left", 5, 60), ("straight", 50, 5), ("straight", 30, 5), ("right", 5, 85), ("right", 5, 85)]
+# The hairpin keeps its two lanes inside the map (a 30 m second straight took its left edge 2.6 m past the
+# margin: now an invalid test); the cautious reference driver completes it, so the failure is certified.
+HAIRPIN = [("left", 5, 60), ("straight", 50, 5), ("straight", 10, 5), ("right", 5, 80), ("right", 5, 80)]
 GENTLE = [("straight", 30, 5), ("left", 5, 20), ("straight", 30, 5), ("right", 5, 25), ("straight", 20, 5)]
 
 
@@ -366,7 +373,8 @@ def test_hairpin_after_a_long_straight_leaves_the_lane(problems):
     assert out.failed and out.failure_kind == "out_of_lane", out.detail
     m = out.metrics
     assert m["max_oob"] > 0.85
-    assert m["oob_arc_length"] > 80  # in the hairpin, after the ~90 m of bend + straights
+    assert m["oob_arc_length"] > 80  # in the hairpin, after the ~80 m of bend + straights
+    assert out.verdict == "FAIL(out_of_lane)" and out.reference["check"] == "reference_driver"
     assert m["departure_arc_length"] <= m["oob_arc_length"]
     x, y = out.failure_point
     lane = car.right_lane(car.road_of(p, sc)[0], 4.0)
@@ -387,16 +395,19 @@ def test_gentle_road_is_driven(problems):
 
 def test_car_that_barely_moves_stalls(problems):
     p = problems["vehicle"]
-    out = full_model_executor(p, accel=0.01).execute(road(p, GENTLE))  # 0.5 m in 10 s
+    # 0.5 m in 10 s; unchecked: the cautious reference driver has the same 0.01 m/s^2 and stalls too
+    out = full_model_executor(p, accel=0.01, reference=False).execute(road(p, GENTLE))
     assert out.failure_kind == "stall" and out.metrics["time"] == pytest.approx(10.0, abs=0.06)
 
 
 # --- thermostat --------------------------------------------------------------------------------
 def test_room_cannot_follow_hourly_swings(problems):
+    """The thermostat's own verdict (``reference=False``): even an ideal controller misses these
+    swings, so with the reference check they are an invalid test (test_reference_thermostat.py)."""
     p = problems["thermostat"]
     els = [{"temperature": 16 if i % 2 == 0 else 20, "duration": 60, "model": 7} for i in range(24)]
     for controller in ("onoff", "pid"):
-        out = full_model_executor(p, controller=controller).execute(scenario(p, els))
+        out = full_model_executor(p, controller=controller, reference=False).execute(scenario(p, els))
         assert out.failed and out.failure_kind == "requirement", controller
         assert out.metrics["rmse"] > 1.0 and out.objectives["thermostat_rmse"] == out.metrics["rmse"]
 
@@ -521,7 +532,7 @@ def test_execute_json_shape_and_bad_input(tmp_path, capsys, problems):
     good = write(tmp_path, "hairpin.json", road(p, HAIRPIN).to_dict())
     assert main(["execute", good, "--json", "--seed", "3", "--profile", "refined"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert list(out) == ["problem", "valid", "failed", "failure_kind", "metrics", "profile"]
+    assert list(out) == ["problem", "valid", "failed", "failure_kind", "verdict", "reference", "metrics", "profile"]
     assert out["profile"] == "refined"
     assert out["problem"] == "vehicle" and out["valid"] is True
     assert out["failed"] is True and out["failure_kind"] == "out_of_lane"
@@ -559,7 +570,14 @@ def test_execute_through_the_ambiegen_command(tmp_path, problems):
                          cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert run.returncode == 0, run.stderr
     out = json.loads(run.stdout)
-    assert out["failed"] is True and out["failure_kind"] == "requirement"
+    # hourly 4-degree swings: the thermostat breaks the requirement, and so does an ideal controller
+    assert out["failed"] is False and out["failure_kind"] == "invalid_test"
+    assert out["verdict"].startswith("INVALID_TEST(even an ideal controller")
+    assert out["metrics"]["sut_failure_kind"] == "requirement" and out["reference"]["check"] == "ideal_controller"
+    run = subprocess.run([sys.executable, "-m", "ambiegen_ros", "execute", good, "--json", "--set", "reference=false"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=60)
+    out = json.loads(run.stdout)
+    assert out["failed"] is True and out["failure_kind"] == "requirement" and out["reference"] is None
     bad = write(tmp_path, "bad.json",
                 {"problem": "thermostat", "elements": [{"temperature": 99, "duration": 60, "model": 1}]})
     run = subprocess.run([sys.executable, "-m", "ambiegen_ros", "execute", bad, "--json"],

@@ -1,0 +1,243 @@
+"""Robot reference: a route that keeps the robot's footprint plus a margin clear of every wall.
+
+The replication profile's A* (``diagonal="always"``) steps between two wall cells that touch at a
+corner and brushes wall corners at zero clearance: a route no robot can drive. A failure on such a
+map says nothing about the robot, so the full model drives a route planned here instead, and a
+map without one is an invalid test.
+
+* *Required clearance*: the circumscribed radius of the pioneer2dx footprint about its rotation
+  centre (``footprint_radius``: 0.26 m, the rear of its lid; computed from
+  ``robot_world.PIONEER2DX``) plus ``clearance_margin`` (0.1 m): 0.36 m. A robot centre that far
+  from every wall cannot touch one at any heading.
+* *Clearance field*: the map (walls and everything outside it) is seen on a fine grid of
+  ``route_resolution`` (0.1 m; rounded so that a whole number of fine cells fits a map cell). A
+  fine cell is free when the Euclidean distance from its centre to the nearest wall cell's square
+  is at least the required clearance. The distance is exact: a Euclidean distance transform on
+  the half-fine lattice, which holds both the nearest wall corner and the foot of the
+  perpendicular to the nearest wall edge of every fine-cell centre.
+* *Route*: the shortest 8-connected path over free fine cells (a diagonal step needs both
+  orthogonal neighbours free) from the start's to the goal's fine cell (``scipy.sparse.csgraph``),
+  then pulled tight: from each vertex the farthest later one whose straight segment keeps the
+  clearance, then every vertex dropped whose neighbours see each other (segments sampled every
+  ``SEGMENT_STEP`` = 1 cm against the exact wall distance ``robot_world.clearances``, so a segment
+  may come at most 5 mm nearer between samples).
+  Two adjacent fine-cell centres are joined even when their short segment dips below the
+  clearance (a corner passed between them: at most 7 mm at 0.1 m); ``route_min_clearance_m``
+  records what the final route keeps, measured the same way.
+* *Start and goal*: the problem's cell centres, joined to the route exactly. A free map cell's
+  centre keeps half a cell (0.5 m) from the walls, more than the 0.36 m required, so with the
+  default margin this never decides anything; with a margin above 0.24 m (or a finer map) a start
+  or goal with less clearance than required has no clearance route: INVALID_TEST naming it, never
+  a route that squeezes out of it.
+
+``before`` answers ``clearance_route``: passed with the route as evidence (the simulator drives
+it), or not passed, "no route keeps 0.36 m from the walls". There is no ``after`` hook: on a map
+with a clearance route the robot's failure is its own (the route exists; a robot that keeps it
+passes), so the route's existence is the whole reference.
+
+Speed (``bench/robot_route.py``, 20 sampled replication maps + an empty room, 500 x 500 fine
+cells each): median 0.37 s, worst 0.48 s on the shared 2-core machine at load 6 (median 0.83 s
+at load 8); the distance transform, the graph and Dijkstra take about a third each. A simulated
+run takes seconds.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ...problems.robot import grid_graph
+from ..robot_world import PIONEER2DX, clearances, pad_grid
+from . import ReferenceVerdict
+
+SEGMENT_STEP = 0.01
+"""Samples along a route segment whose wall distance is checked [m] (error at most half of it)."""
+EPS = 1e-9  # distances equal to the required clearance count as enough (float rounding) [m]
+
+
+def footprint_radius(footprint: np.ndarray = PIONEER2DX) -> float:
+    """The body's circumscribed radius about its rotation centre (the footprint's origin) [m]."""
+    pts = np.asarray(footprint, dtype=float)
+    return float(np.hypot(pts[:, 0], pts[:, 1]).max())
+
+
+def required_clearance(config: Any) -> float:
+    """Footprint radius + the config's ``clearance_margin`` [m]."""
+    return footprint_radius() + float(config.clearance_margin)
+
+
+def fine_size(resolution: float, route_resolution: float) -> float:
+    """``route_resolution`` rounded so that a whole number of fine cells fits one map cell."""
+    return resolution / max(1, round(resolution / route_resolution))
+
+
+@dataclass
+class ClearanceRoute:
+    """A route keeping ``required`` metres from every wall; ``waypoints`` empty when none exists."""
+
+    waypoints: np.ndarray  # (K, 2) metres, start and goal included
+    length: float  # polyline length [m]; inf without a route
+    required: float  # the clearance asked for [m]
+    min_clearance: float | None  # the least wall distance along the route (1 cm samples) [m]
+    reason: str  # why there is no route ("" with one)
+    fine: float  # fine cell size used [m]
+
+    @property
+    def found(self) -> bool:
+        return len(self.waypoints) > 0
+
+
+def clearance_field(grid: np.ndarray, resolution: float, fine: float) -> np.ndarray:
+    """Exact distance from each fine-cell centre to the nearest wall square (outside = wall), ``[y, x]``.
+
+    ``fine`` must divide ``resolution``. The nearest point of a union of cell squares to a centre
+    at odd multiples of fine / 2 is a wall corner or the foot of a perpendicular on a wall edge;
+    both lie on the lattice of fine / 2 steps, so a distance transform over that lattice is exact.
+    """
+    from scipy.ndimage import distance_transform_edt
+
+    grid = np.asarray(grid, dtype=bool)
+    H, W = grid.shape
+    n = int(round(2 * resolution / fine))  # half-fine steps per map cell
+    padded = pad_grid(grid)  # padded index = grid index + 1
+
+    def cells(count: int) -> tuple[np.ndarray, np.ndarray]:
+        k = np.arange(count * n + 1)
+        inner = k // n + 1  # the cell whose square holds the sample (its lower edge included)
+        return inner, np.where(k % n == 0, inner - 1, inner)  # on a cell edge: the neighbour too
+
+    ya, yb = cells(H)
+    xa, xb = cells(W)
+    rows = padded[ya] | padded[yb]
+    wall = rows[:, xa] | rows[:, xb]
+    dist = distance_transform_edt(~wall, sampling=fine / 2)
+    return dist[1::2, 1::2]
+
+
+def _wall_distance(grid: np.ndarray, resolution: float, points: np.ndarray, required: float) -> np.ndarray:
+    """Exact distance of points to the walls (outside = wall), capped beyond ``required`` + a cell."""
+    cells = int(math.ceil(required / resolution)) + 1
+    return clearances(pad_grid(grid), resolution, points[:, 0], points[:, 1], cells, origin=(-resolution, -resolution))
+
+
+def _samples(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    steps = max(1, int(math.ceil(math.hypot(b[0] - a[0], b[1] - a[1]) / SEGMENT_STEP)))
+    s = np.linspace(0.0, 1.0, steps + 1)[:, None]
+    return a + s * (b - a)
+
+
+def polyline_clearance(grid: np.ndarray, resolution: float, waypoints: np.ndarray, required: float) -> float:
+    """The least wall distance along a polyline, sampled every ``SEGMENT_STEP``."""
+    pts = np.concatenate([_samples(a, b) for a, b in zip(waypoints[:-1], waypoints[1:])]) if len(waypoints) > 1 \
+        else np.asarray(waypoints, dtype=float)
+    return float(_wall_distance(grid, resolution, pts, required).min())
+
+
+def _pull_tight(grid: np.ndarray, resolution: float, pts: np.ndarray, required: float) -> np.ndarray:
+    """From each kept vertex, the farthest later one reachable by a segment keeping ``required``
+    (galloping then bisecting; every accepted segment is checked, only adjacent points pass
+    unchecked), then any vertex whose neighbours see each other dropped."""
+
+    def clear(i: int, j: int) -> bool:
+        return bool(_wall_distance(grid, resolution, _samples(pts[i], pts[j]), required).min() >= required - EPS)
+
+    keep, i, last = [0], 0, len(pts) - 1
+    while i < last:
+        best, step, blocked = i + 1, 2, None
+        while best < last:
+            j = min(i + step, last)
+            if clear(i, j):
+                best, step = j, step * 2
+            else:
+                blocked = j
+                break
+        if blocked is not None:
+            lo, hi = best, blocked
+            while hi - lo > 1:
+                mid = (lo + hi) // 2
+                lo, hi = (mid, hi) if clear(i, mid) else (lo, mid)
+            best = lo
+        keep.append(best)
+        i = best
+    changed = True
+    while changed:  # the greedy pass can stop short of a corner (a chord along a wall dips by mm): drop
+        changed = False  # every vertex whose neighbours see each other
+        k = 1
+        while k < len(keep) - 1:
+            if clear(keep[k - 1], keep[k + 1]):
+                del keep[k]
+                changed = True
+            else:
+                k += 1
+    return pts[keep]
+
+
+def plan_clearance_route(grid: np.ndarray, resolution: float, start_xy: tuple[float, float],
+                         goal_xy: tuple[float, float], required: float, route_resolution: float = 0.1) -> ClearanceRoute:
+    """The shortest route from ``start_xy`` to ``goal_xy`` keeping ``required`` m from every wall (module docstring)."""
+    from scipy.sparse.csgraph import dijkstra
+
+    grid = np.asarray(grid, dtype=bool)
+    fine = fine_size(resolution, route_resolution)
+    none = lambda reason: ClearanceRoute(np.zeros((0, 2)), math.inf, required, None, reason, fine)  # noqa: E731
+    ends = np.array([start_xy, goal_xy], dtype=float)
+    own = _wall_distance(grid, resolution, ends, required)
+    for name, xy, d in zip(("start", "goal"), ends, own):
+        if d < required - EPS:
+            return none(f"the {name} ({xy[0]:.2f}, {xy[1]:.2f}) keeps only {d:.2f} m from the walls, "
+                        f"less than the {required:.2f} m required")
+    free = clearance_field(grid, resolution, fine) >= required - EPS
+    Hf, Wf = free.shape
+    nodes = []
+    for xy in ends:  # the fine cell holding the point, else its nearest free neighbour
+        i, j = int(math.floor(xy[0] / fine)), int(math.floor(xy[1] / fine))
+        near = [(jj, ii) for jj in range(j - 1, j + 2) for ii in range(i - 1, i + 2)
+                if 0 <= jj < Hf and 0 <= ii < Wf and free[jj, ii]]
+        near.sort(key=lambda c: (c != (j, i), math.hypot((c[1] + 0.5) * fine - xy[0], (c[0] + 0.5) * fine - xy[1])))
+        if not near:
+            return none(f"no route keeps {required:.2f} m from the walls")
+        nodes.append(near[0][0] * Wf + near[0][1])
+    dist, pred = dijkstra(grid_graph(~free[None], "both_free"), indices=nodes[0], return_predecessors=True)
+    if not np.isfinite(dist[nodes[1]]):
+        return none(f"no route keeps {required:.2f} m from the walls")
+    chain = [nodes[1]]
+    while chain[-1] != nodes[0]:
+        chain.append(int(pred[chain[-1]]))
+    chain = np.asarray(chain[::-1])
+    centres = np.column_stack([(chain % Wf + 0.5) * fine, (chain // Wf + 0.5) * fine])
+    pts = np.concatenate([ends[:1], centres, ends[1:]])
+    waypoints = _pull_tight(grid, resolution, pts, required)
+    length = float(np.hypot(*np.diff(waypoints, axis=0).T).sum())
+    return ClearanceRoute(waypoints, length, required, polyline_clearance(grid, resolution, waypoints, required), "",
+                          fine)
+
+
+def route_for(grid: np.ndarray, resolution: float, start: tuple[int, int], goal: tuple[int, int],
+              config: Any) -> ClearanceRoute:
+    """The clearance route between two cells' centres with the config's margin and resolution."""
+    centre = lambda c: ((c[0] + 0.5) * resolution, (c[1] + 0.5) * resolution)  # noqa: E731
+    return plan_clearance_route(grid, resolution, centre(start), centre(goal), required_clearance(config),
+                                config.route_resolution)
+
+
+def before(problem: Any, scenario: Any, config: Any) -> ReferenceVerdict:
+    """Passed when a clearance route joins the problem's start and goal; it is the route driven."""
+    env = problem.environment(scenario)
+    route = route_for(env.grid, env.resolution, problem.config.start, problem.config.goal, config)
+    metrics = {
+        "route_length_m": route.length if route.found else None,
+        "clearance_m": route.required,
+        "footprint_radius_m": footprint_radius(),
+        "clearance_margin_m": float(config.clearance_margin),
+        "route_min_clearance_m": route.min_clearance,
+        "route_resolution_m": route.fine,
+        "route_waypoints": int(len(route.waypoints)),
+    }
+    return ReferenceVerdict(route.found, "clearance_route", route.reason, metrics,
+                            {"route": route.waypoints} if route.found else {})
+
+
+__all__ = ["ClearanceRoute", "SEGMENT_STEP", "before", "clearance_field", "fine_size", "footprint_radius",
+           "plan_clearance_route", "polyline_clearance", "required_clearance", "route_for"]
