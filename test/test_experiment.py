@@ -14,9 +14,7 @@ import pytest
 
 from ambiegen_ros.cli import main as ambiegen_main
 from ambiegen_ros.core.stats import cliffs_delta, mann_whitney
-from ambiegen_ros.experiment import ExperimentSpec, FullModelTally, run_experiment
-from ambiegen_ros.problems import get_problem
-from ambiegen_ros.sims.outcome import Outcome
+from ambiegen_ros.experiment import ExperimentSpec, run_experiment
 
 TINY = ["--problem", "thermostat", "--algorithms", "ga,random", "--runs", "3", "--evaluations", "400", "--seed", "11"]
 TINY_SPEC = ExperimentSpec(problem="thermostat", algorithms=("ga", "random"), runs=3, seed=11, evaluations=400)
@@ -113,77 +111,41 @@ def test_existing_directory_is_never_overwritten(tiny, tmp_path, capsys):
     assert (stranger / "notes.txt").read_text() == "mine" and len(list(stranger.iterdir())) == 1
 
 
-class FakeClock:
-    """The budget clock, moved only by the executor: the test sees events, never the machine's speed."""
-
-    def __init__(self):
-        self.now = 0.0
-
-    def __call__(self) -> float:
-        return self.now
-
-
-class ScriptedExecutor:
-    """Stands in for a full-model executor: fails every scenario, taking ``delay`` seconds of ``clock``."""
-
-    def __init__(self, clock: FakeClock, delay: float = 0.0):
-        self.clock, self.delay = clock, delay
-
-    def execute(self, scenario, seed=0):
-        self.clock.now += self.delay
-        return Outcome(objectives={"x": 1.0}, failed=True, failure_kind="collision", metrics={"m": 2.0})
-
-
-def test_tally_counts_distinct_failures_and_drops_executions_past_the_budget():
-    problem = get_problem("thermostat")
-    rows = problem.sample_rows(2, np.random.default_rng(3))
-    clock = FakeClock()
-    tally = FullModelTally(problem, ScriptedExecutor(clock), clock, 60.0, seed=1, distinct_distance=0.0)
-    assert not tally.seen(rows[0])
-    tally.execute(rows[0], 1.0, 0.0)
-    assert tally.seen(rows[0]) and not tally.seen(rows[1])
-    tally.execute(rows[0], 1.0, 0.0)  # the same scenario again: a failure, not a distinct one
-    tally.execute(rows[1], 2.0, 0.0)
-    summary = tally.summary(budget=60)
-    assert (summary["executions"], summary["failures"], summary["distinct_failures"]) == (3, 3, 2)
-    assert summary["failure_nearest"][1] == 0.0 and summary["failure_nearest"][2] > 0
-    assert summary["failures_per_hour"] == pytest.approx(3 * 60) and summary["failure_kinds"] == {"collision": 3}
-
-    clock = FakeClock()
-    late = FullModelTally(problem, ScriptedExecutor(clock, delay=0.05), clock, 0.01, seed=1, distinct_distance=0.0)
-    late.execute(rows[0], 1.0, 0.0)
-    assert (late.executions, late.failures, late.overrun) == (0, 0, 1)
-
-
 def test_full_model_experiment_on_the_vehicle_counts_failures(tmp_path):
+    """End to end; the schedule itself is tested on a fake clock in test/experiment/test_rq3_pipeline.py."""
     out = tmp_path / "rq3"
-    budget = 3.0
+    budget, cost = 2.0, 0.5
     # a driver who corners beyond the tyres' grip leaves the lane on most roads: failures to count
     code = ambiegen_main(["experiment", "--problem", "vehicle", "--algorithms", "nsga2,random", "--runs", "1",
                           "--jobs", "1", "--full-model", "--time-budget", str(budget), "--set", "corner_lat_accel=12",
-                          "--clock", "cpu",  # process time: what a run gets does not depend on other load
-                          "--seed", "4", "--out", str(out), "-q"])
+                          "--execution-cost", str(cost), "--clock", "cpu",  # what a run gets does not depend on load
+                          "--seed", "4", "--profile", "refined",  # its roads are never cut: executions in 2 s
+                          "--out", str(out), "-q"])
     assert code == 0
     rows = {r["algorithm"]: r for r in read_csv(out / "results.csv")}
     assert set(rows) == {"nsga2", "random"}
     for alg, r in rows.items():
-        executions, failures = int(r["executions"]), int(r["failures"])
+        executions, failures, invalid = int(r["executions"]), int(r["failures"]), int(r["invalid_tests"])
+        screened = int(r["screened_out"])  # invalid tests decided before the car ran: not executions
         kinds = dict(item.split(":") for item in r["failure_kinds"].split(";"))
-        assert executions > 0 and sum(map(int, kinds.values())) == executions
-        assert failures == executions - int(kinds.get("none", 0)) - int(kinds.get("error", 0))
+        # random vehicle roads mostly leave the map: screened out for free, perhaps none executed in 2 s
+        assert executions <= budget / cost and sum(map(int, kinds.values())) == executions + screened > 0
+        assert invalid == int(kinds.get("invalid_test", 0)) >= screened
+        assert failures == executions - (invalid - screened) - int(kinds.get("none", 0)) - int(kinds.get("error", 0))
         assert float(r["failures_per_hour"]) == pytest.approx(failures * 3600 / budget, rel=1e-4)
-        assert float(r["wall_s"]) >= budget  # the run ends once its clock passes the budget
+        assert float(r["charged_s"]) <= budget
         record = json.loads((out / "runs" / f"{alg}-000.json").read_text())
-        assert int(r["distinct_failures"]) == sum(d > 0 for d in record["failure_nearest"]) <= failures
-        assert sum(record["sample"]["failed"]) == failures  # fewer executions than the sample cap
-    assert int(rows["random"]["failures"]) > 0
-    assert int(rows["nsga2"]["rounds"]) >= 1
+        assert int(r["distinct_failures"]) == len(record["distinct_examples"]) <= failures
+        assert sum(record["sample"].get("failed", [])) == failures  # fewer executions than the sample cap
+    assert int(rows["nsga2"]["executions"]) > 0 and int(rows["nsga2"]["failures"]) > 0
+    assert int(rows["nsga2"]["search_steps"]) >= 1
     stats = json.loads((out / "stats.json").read_text())
-    assert {"failures_per_hour", "distinct_failures", "failure_rate"} <= {t["metric"] for t in stats["tests"]}
-    assert any(row["metric"] == "failed" for row in stats["spearman"])
+    assert {"distinct_per_hour", "distinct_failures", "invalid_tests"} <= {t["metric"] for t in stats["tests"]}
     report = (out / "report.md").read_text()
-    assert "RQ3" in report and "profile `replication`" in report and "out_of_lane" in report
+    assert "RQ3" in report and "profile `refined`" in report and "out_of_lane" in report
     assert (out / "failures.png").exists()
+    gallery = sorted(p.name for p in (out / "gallery").iterdir())
+    assert gallery and all(f"(gallery/{name})" in report for name in gallery if name.endswith(".png"))
 
 
 def test_a_failing_run_is_reported_and_the_others_finish(tmp_path, monkeypatch):
@@ -204,12 +166,3 @@ def test_a_failing_run_is_reported_and_the_others_finish(tmp_path, monkeypatch):
     assert [r["algorithm"] for r in result["records"]] == ["ga"]
     assert not (tmp_path / "exp" / "runs" / "random-000.json").exists()  # --resume will run it
     assert [r["algorithm"] for r in read_csv(tmp_path / "exp" / "results.csv")] == ["ga"]
-
-
-def test_break_even_execution_time_by_hand():
-    from ambiegen_ros.experiment import break_even_seconds
-
-    # search: every execution fails, 1.1 s of search per execution; random: 1 in 10 fails, free to generate.
-    # 1 / (1.1 + c) = 0.1 / c  ->  c = 0.11 / 0.9
-    assert break_even_seconds({"rate": 1.0, "gen": 1.1}, {"rate": 0.1, "gen": 0.0}) == pytest.approx(0.11 / 0.9)
-    assert break_even_seconds({"rate": 0.1, "gen": 1.0}, {"rate": 0.1, "gen": 0.0}) is None

@@ -16,9 +16,9 @@ def _spec_from_args(args: argparse.Namespace):
     return ExperimentSpec(
         problem=args.problem, algorithms=algorithms, runs=args.runs, seed=args.seed, profile=args.profile,
         evaluations=args.evaluations, time_budget=args.time_budget, full_model=args.full_model,
-        config_file=args.config, sim_options=parse_options(args.set), round_evaluations=args.round_evaluations,
-        search_share=args.search_share, distinct_distance=args.distinct_distance, clock=args.clock,
-        execute=args.execute,
+        config_file=args.config, sim_options=parse_options(args.set), distinct_distance=args.distinct_distance,
+        clock=args.clock, executors=args.executors, execution_cost=args.execution_cost,
+        signature_radius=args.signature_radius, rerank=args.rerank,
     )
 
 
@@ -39,8 +39,10 @@ def cmd_experiment(args: argparse.Namespace) -> int:
         rs = [r for r in records if r["algorithm"] == alg]
         line = f"  {ALGORITHM_LABELS.get(alg, alg):<13} median best F1 {median([r['best_f1'] for r in rs]):.4g}"
         if spec.full_model:
-            line += (f", failures/h {median([r['failures_per_hour'] for r in rs]):.3g}"
-                     f", failure rate {median([r['failure_rate'] for r in rs]):.3g}")
+            line += (f", executions {median([r['executions'] for r in rs]):g}"
+                     f", failures {median([r['failures'] for r in rs]):g}"
+                     f", distinct {median([r['distinct_failures'] for r in rs]):g}"
+                     f", invalid tests {median([r.get('invalid_tests', 0) for r in rs]):g}")
         else:
             line += f", diversity {median([r['diversity'] for r in rs]):.3f}"
         print(line)
@@ -53,7 +55,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
 
 def register(sub) -> None:
     """Add ``experiment`` to ``ambiegen``'s subparsers."""
-    from ..core.names import EXECUTE_MODES
+    from ..experiment.spec import RERANKS
     from ..problems import PROBLEM_NAMES, PROFILES
 
     p = sub.add_parser("experiment", help="the paper's RQ1-RQ3: repeated runs, statistics, report and plots",
@@ -70,7 +72,7 @@ def register(sub) -> None:
     budget = p.add_mutually_exclusive_group()
     budget.add_argument("--evaluations", type=int, help="surrogate evaluations per run (default: the paper's budget)")
     budget.add_argument("--time-budget", type=float, metavar="S",
-                        help="seconds per run (RQ1/RQ2: of search; --full-model: of search + execution, default 7200)")
+                        help="seconds per run (RQ1/RQ2: of search; --full-model: on the executors' clocks, default 7200)")
     p.add_argument("--full-model", action="store_true", help="RQ3: execute scenarios on the full-model simulators")
     p.add_argument("--profile", choices=PROFILES, help="fidelity profile of the problem (default: replication)")
     p.add_argument("--seed", type=int, default=0, help="base seed; run k uses seed + k (default 0)")
@@ -78,19 +80,24 @@ def register(sub) -> None:
     p.add_argument("--config", metavar="FILE.yaml", help="search settings and problem_config overrides")
     p.add_argument("--set", action="append", default=[], metavar="OPTION=VALUE",
                    help="--full-model: simulator option (repeatable), as for `ambiegen execute`")
-    p.add_argument("--round-evaluations", type=int,
-                   help="--full-model: evaluations of one search round (default: the paper's RQ3 setting)")
-    p.add_argument("--search-share", type=float, default=0.5,
-                   help="--full-model: most of the time left one search round may use (default 0.5)")
     p.add_argument("--distinct-distance", type=float, default=0.0,
-                   help="--full-model: a failure is distinct when its Jaccard distance to every earlier failure "
-                        "is above this (default 0: not the same scenario within the attribute tolerances)")
+                   help="--full-model: skip a candidate within this Jaccard distance of an executed failure "
+                        "(default 0: only the same scenario within the attribute tolerances)")
     p.add_argument("--clock", choices=("wall", "cpu"), default="wall",
-                   help="--full-model: budget clock (default wall, as the paper; cpu = process time, "
-                        "immune to other load on the machine)")
-    p.add_argument("--execute", choices=EXECUTE_MODES, default="suite",
-                   help="--full-model: what a GA/NSGA-II round executes, best first: its suite (10 best / Pareto "
-                        "front, the paper's output; default) or every risky scenario it evaluated (F1 > alpha)")
+                   help="--full-model: how search and execution times are measured (default wall, as the paper; "
+                        "cpu = process time, immune to other load on the machine)")
+    p.add_argument("--executors", type=int, default=1,
+                   help="--full-model: full-model executors running beside the search, each on its own clock "
+                        "(default 1)")
+    p.add_argument("--execution-cost", type=float, default=0.0, metavar="S",
+                   help="--full-model: seconds of budget charged per execution on top of the measured time, "
+                        "without sleeping (e.g. 30 for a 30 s simulator; default 0)")
+    p.add_argument("--signature-radius", type=float, metavar="R",
+                   help="--full-model: two failures of the same kind are the same when this close: robot metres "
+                        "(default 2), vehicle metres of road (default 10), thermostat schedule elements (default 0)")
+    p.add_argument("--rerank", choices=RERANKS, default="surrogate",
+                   help="--full-model: order of the waiting candidates: surrogate F1 (default) or a failure-"
+                        "probability model learned from the executions so far (learned)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_experiment)
 

@@ -13,37 +13,30 @@ reports: the mean pairwise Jaccard distance of the 10 best (GA, random) or of th
 Pareto front (NSGA-II).
 
 RQ3 (``--full-model``): every algorithm gets the same clock budget (``--time-budget``, default
-the paper's two hours) that covers generating AND executing scenarios on the full-model
-simulator. Random search samples scenarios and executes the valid ones until the budget ends.
-GA and NSGA-II work in rounds, as the paper's RQ3 pipeline did (a fresh short search, then its
-final population's best scenarios go to the simulator, again and again): each round is a new
-surrogate search with the paper's RQ3 round budget (robot: population 100, 10 offspring, 4,100
-evaluations; vehicle: 100 / 25 / 5,100; thermostat, not in the paper's RQ3: as the vehicle) that
-may use at most ``--search-share`` of the time left; then its suite (10 best / feasible Pareto
-front: what AmbieGen outputs; ``--execute risky`` adds every risky scenario, F1 > alpha, that the
-round evaluated) is executed best first, skipping scenarios invalid or identical (within the
-attribute tolerances) to one already executed; then the next round starts. An execution that ends
-after the budget does not count. Our full models run in milliseconds to seconds where the paper's
-took minutes, so the report also gives the failure rate per execution and the execution time
-above which the search finds more failures per hour than random search. A failure is an
-execution whose oracle fails (``Outcome.failed``); it is distinct when its Jaccard distance to
-every earlier failure of the run is above ``--distinct-distance`` (default 0: not the same
-scenario within the attribute tolerances).
+the paper's two hours) on the executors' clocks. The search (one population carried on for the
+whole run) and ``--executors`` full-model executors run at the same time, as a discrete-event
+schedule on measured times (``pipeline``; docs/rq3_pipeline.md): candidates (risky scenarios and
+the current suite; random search: every valid sample) are executed best first, skipping any
+already executed or within ``--distinct-distance`` of an executed failure; ``--execution-cost S``
+charges S seconds per execution on top of the measured time. Failures are certified (the full
+model's reference check); scenarios no reference passes are ``invalid_tests``, never failures;
+distinct failures are counted by what failed (``sims.signature``, ``--signature-radius``), and the
+report shows one picture per distinct failure (``gallery/``).
 """
 from __future__ import annotations
 
 # One module per concern: spec (request, identity), runner (pool, resume, progress), records (run
 # files), pipeline (RQ3 full-model search + execution), summary (tables, statistics), report (text).
-# Names load on first use, so that the command line can read ``spec.EXECUTE_MODES`` cheaply.
+# Names load on first use, so that the command line can read ``spec.RERANKS`` cheaply.
 from importlib import import_module
 from typing import Any
 
 _HOMES = {
-    "pipeline": ("SAMPLE_CAP", "FullModelTally", "break_even_seconds"),
+    "pipeline": ("SAMPLE_CAP", "CandidateQueue", "FullModelTally", "SearchProcess", "full_model_run"),
     "records": ("run_path", "write_atomic"),
     "report": ("ALGORITHM_LABELS", "PAPER_MEDIANS", "PAPER_RQ3", "PAPER_TESTS", "median", "report"),
     "runner": ("ExperimentProgress", "default_jobs", "prepare", "run_experiment", "run_task"),
-    "spec": ("EXECUTE_MODES", "PAPER_RQ3_BUDGET_S", "RQ3_ROUNDS", "ExperimentError", "ExperimentSpec", "resolve",
+    "spec": ("PAPER_RQ3_BUDGET_S", "RERANKS", "RQ3_ROUNDS", "ExperimentError", "ExperimentSpec", "resolve",
              "run_identity"),
     "summary": ("CHECKPOINTS", "checkpoint_table", "correlations", "statistics", "summarize"),
 }

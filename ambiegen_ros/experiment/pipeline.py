@@ -1,38 +1,63 @@
-"""RQ3's full-model pipeline: search and execution on the full-model simulator share one clock.
+"""RQ3's full-model pipeline: the search and the executions run at the same time, on measured clocks.
 
-Every algorithm gets the same clock budget (``time_budget_s``, default the paper's two hours)
-that covers generating AND executing scenarios on the full-model simulator. Random search samples
-scenarios and executes the valid ones until the budget ends. GA and NSGA-II work in rounds, as the
-paper's RQ3 pipeline did (a fresh short search, then its final population's best scenarios go to
-the simulator, again and again): each round is a new surrogate search with the paper's RQ3 round
-budget (``spec.RQ3_ROUNDS``) that may use at most ``search_share`` of the time left; then its suite
-(10 best / feasible Pareto front: what AmbieGen outputs; ``execute: risky`` adds every risky
-scenario, F1 > alpha, that the round evaluated) is executed best first, skipping scenarios invalid
-or identical (within the attribute tolerances) to one already executed; then the next round starts.
-An execution that ends after the budget does not count. A failure is an execution whose oracle
-fails (``Outcome.failed``); it is distinct when its Jaccard distance to every earlier failure of
-the run is above ``distinct_distance``.
+One run is one process (``--jobs`` already runs runs in parallel on the machine's cores; more real
+processes per run would only fight for them), so the pipeline is an honest discrete-event schedule
+of measured times:
 
-Kept apart from the runner because this pipeline is to be rewritten ("search and execution at
-the same time") without touching the runner, records or report.
+* **The search** has its own clock. It advances by the measured time of each generation (one
+  ``Search.ask`` / surrogate evaluation / ``tell``). It keeps ONE population carried on for the
+  whole run (``core.search.Search``, never restarted). Every generation produces candidates at the
+  search clock's new time: every valid risky scenario it evaluated (F1 > alpha) plus the valid
+  members of the current suite (10 best / feasible Pareto front). Random search is the same
+  process: it samples a batch per step and every valid sample is a candidate.
+* **E executors** (``--executors``, default 1) each have their own clock. An executor that is
+  free at time t takes the best waiting candidate produced at or before t: highest surrogate F1
+  first (random: in the order sampled; ``--rerank learned``: a failure-probability model, see
+  ``.rerank``), skipping any already executed (Jaccard distance 0 within the attribute
+  tolerances) or within ``--distinct-distance`` of a failure that had ended by t. Its clock
+  advances by the measured execution time plus ``--execution-cost`` S (charged, never slept: a
+  0.04 s car and a 30 s simulator are both honest settings) whenever the system under test ran: a
+  scenario the restrictions reject, or an invalid test decided by the reference's static check
+  before anything runs (the vehicle's competition rules, the robot's clearance route), costs only
+  its measured time, as a tester checks a road before starting the simulator. An executor with
+  nothing available waits: its clock jumps to the moment the search produces the next candidate.
+* **The budget** (``--time-budget``) is on the executors' clocks: an execution that would end after
+  it does not count (``overrun_discarded``). The search runs at least until it has used the
+  problem's RQ3 round budget of evaluations (``spec.RQ3_ROUNDS``, the paper's evaluations per
+  search); after that, only when the executors have no candidate left. Stopping the search early
+  can only disadvantage the search (it would only add candidates), and it keeps experiments
+  affordable: with a 30 s simulator one hour is ~120 executions, which the first searches feed.
+
+Events are processed in time order (always the executor with the earliest clock), so a candidate
+is never executed before the search produced it and a failure is never used to skip a candidate
+before it ended. Outcomes are counted by ``FullModelTally``: certified failures (``Outcome.failed``
+after the full model's reference check), ``invalid_tests`` (scenarios no reference passes; never
+failures), and distinct failures by what failed (``sims.signature``), not by genome.
 """
 from __future__ import annotations
 
 import dataclasses
+import heapq
+import itertools
+import math
 import time
+from collections import deque
 from typing import Any, Callable
 
 import numpy as np
 
 from ..core.accel import SMALL_BATCH
+from ..sims.signature import DistinctFailures, signature
 
 SAMPLE_CAP = 1000  # executions kept per run for the surrogate-vs-full-model correlation
+DISTINCT_KEPT = 24  # distinct failures kept per run (scenario, seed) for the failure gallery
+UNBOUNDED = 10**12  # the carried-on search has no evaluation budget of its own
 
 _WARM: set[tuple[str, bool]] = set()
 
 
 def make_clock(kind: str) -> Callable[[], float]:
-    """The budget clock: wall (as the paper) or cpu (process time, immune to other load)."""
+    """The measuring clock: wall (as the paper) or cpu (process time, immune to other load)."""
     return time.process_time if kind == "cpu" else time.perf_counter
 
 
@@ -51,73 +76,235 @@ def warm_up(problem, executor) -> None:
     _WARM.add(key)
 
 
-class FullModelTally:
-    """Executions of one RQ3 run: failures, distinct failures, kinds, and a sample for correlations."""
+@dataclasses.dataclass
+class Candidate:
+    """A scenario waiting for an executor: produced at ``produced_s`` on the search clock."""
 
-    def __init__(self, problem, executor, clock: Callable[[], float], deadline: float, seed: int,
-                 distinct_distance: float):
-        self.problem, self.executor = problem, executor
-        self.clock, self.deadline = clock, deadline
-        self.seed = seed
+    row: np.ndarray
+    f1: float
+    produced_s: float
+    order: int
+    metrics: dict[str, float]
+
+
+class CandidateQueue:
+    """Waiting candidates: available ones in a heap (best first, or in production order), future
+    ones in a deque (the search clock only moves forward, so production times are sorted)."""
+
+    def __init__(self, best_first: bool):
+        self.best_first = best_first
+        self.score: Callable[[list[Candidate]], np.ndarray] | None = None  # --rerank: higher = sooner
+        self._future: deque[Candidate] = deque()
+        self._ready: list[tuple[float, int, Candidate]] = []
+        self._keys: set[bytes] = set()
+        self._order = itertools.count()
+
+    def push(self, row: np.ndarray, f1: float, produced_s: float, metrics: dict[str, float]) -> bool:
+        """Add a candidate once (a scenario already queued or executed is not added again)."""
+        key = np.asarray(row, dtype=float).tobytes()
+        if key in self._keys:
+            return False
+        self._keys.add(key)
+        self._future.append(Candidate(np.array(row, dtype=float), float(f1), produced_s, next(self._order), metrics))
+        return True
+
+    def _priority(self, c: Candidate, score: float | None = None) -> float:
+        if not self.best_first:
+            return float(c.order)
+        return -(c.f1 if score is None else score)
+
+    def _release(self, now: float) -> None:
+        moved = []
+        while self._future and self._future[0].produced_s <= now:
+            moved.append(self._future.popleft())
+        scores = self.score(moved) if (self.score is not None and moved) else [None] * len(moved)
+        for c, s in zip(moved, scores):
+            heapq.heappush(self._ready, (self._priority(c, s), c.order, c))
+
+    def reorder(self) -> None:
+        """Re-score every available candidate (after the rerank model was refitted)."""
+        if self.score is None or not self._ready:
+            return
+        items = [c for _, _, c in self._ready]
+        self._ready = [(self._priority(c, s), c.order, c) for c, s in zip(items, self.score(items))]
+        heapq.heapify(self._ready)
+
+    def pop(self, now: float, skip: Callable[[Candidate], bool]) -> Candidate | None:
+        """The best candidate available at ``now`` that ``skip`` does not drop (dropped ones are gone)."""
+        self._release(now)
+        while self._ready:
+            c = heapq.heappop(self._ready)[2]
+            if not skip(c):
+                return c
+        return None
+
+    def next_time(self) -> float | None:
+        """When the next not-yet-available candidate becomes available (None: none waiting)."""
+        return self._future[0].produced_s if self._future else None
+
+    def __len__(self) -> int:
+        return len(self._future) + len(self._ready)
+
+
+class SearchProcess:
+    """The search on its own clock: one population carried on (ask/tell), feeding the queue."""
+
+    def __init__(self, problem, settings, queue: CandidateQueue, clock: Callable[[], float]):
+        from ..core.search import Search
+
+        self.problem, self.queue, self.clock = problem, queue, clock
+        self.random = settings.algorithm == "random"
+        self.min_evaluations = int(settings.evaluations or 0)
+        self.search = Search(problem, dataclasses.replace(settings, evaluations=UNBOUNDED, time_budget=None))
+        self.t = 0.0  # the search clock (jumps forward when an idle search is asked for more)
+        self.busy = 0.0  # the measured time of its generations
+        self.steps = 0
+        self.exhausted = False  # nothing new can be bred
+
+    @property
+    def evaluations(self) -> int:
+        return self.search.evaluations
+
+    def wanted(self) -> bool:
+        """Below its guaranteed budget the search always runs; above it, only when asked."""
+        return not self.exhausted and self.evaluations < self.min_evaluations
+
+    def step(self) -> int:
+        """One generation; its candidates are produced when it ends. Returns how many were new."""
+        t0 = self.clock()
+        X = self.search.ask()
+        if X is None:
+            self.exhausted = True
+            return 0
+        ev = self.problem.evaluate_rows(X)
+        self.search.tell(ev)
+        f1 = np.where(ev.valid, np.nan_to_num(ev.f1, nan=0.0), 0.0).astype(float)
+        pick = np.asarray(ev.valid, dtype=bool) if self.random else (np.asarray(ev.valid, dtype=bool)
+                                                                      & (f1 > self.problem.alpha))
+        rows = [(X[i], f1[i], _numeric(ev.row(i))) for i in np.flatnonzero(pick)]
+        if not self.random:
+            pop = self.search.suite_population()
+            for ind in pop:
+                info = ind.get("info")
+                if info is not None and info.get("valid"):
+                    rows.append((ind.get("X"), float(ind.get("f1")), _numeric(info)))
+        spent = self.clock() - t0
+        self.t += spent
+        self.busy += spent
+        self.steps += 1
+        return sum(self.queue.push(row, f, self.t, m) for row, f, m in rows)
+
+
+def system_ran(outcome) -> bool:
+    """Did the system under test run (what ``--execution-cost`` charges)? Not for a restriction
+    reject nor for an invalid test decided before the run (no ``sut_failure_kind`` recorded)."""
+    if outcome.failure_kind == "invalid_scenario":
+        return False
+    return not (outcome.failure_kind == "invalid_test" and "sut_failure_kind" not in (outcome.metrics or {}))
+
+
+def _numeric(info: dict[str, Any]) -> dict[str, float]:
+    """The surrogate's numeric metrics of one scenario (features for --rerank learned)."""
+    return {k: float(v) for k, v in info.items()
+            if k not in ("valid", "reason") and isinstance(v, (int, float, np.integer, np.floating))
+            and not isinstance(v, bool) and math.isfinite(float(v))}
+
+
+class FullModelTally:
+    """Executions of one RQ3 run: certified failures, distinct failures by signature, invalid tests.
+
+    ``executions`` are runs of the system under test (what ``--execution-cost`` charges);
+    ``invalid_tests`` counts every INVALID_TEST, ``screened_out`` those decided before anything ran
+    (not executions); ``rejected`` scenarios broke the problem's restrictions (never simulated).
+    """
+
+    def __init__(self, problem, seed: int, distinct_distance: float = 0.0, signature_radius: float | None = None):
+        self.problem, self.seed = problem, seed
         self.distinct_distance = distinct_distance
+        self.signature_radius = signature_radius
         codec = problem.codec
         shape = (0, codec.m_max, len(codec.attributes))
         self._executed = (np.zeros(shape), np.zeros(0, dtype=int))
         self._failed = (np.zeros(shape), np.zeros(0, dtype=int))
-        self.executions = self.rejected = self.overrun = 0
-        self.failures = self.distinct = 0
+        self._failed_end = np.zeros(0)
+        self.dispatched = 0
+        self.executions = self.rejected = self.overrun = self.invalid_tests = self.screened_out = 0
+        self.failures = 0
+        self.distinct = DistinctFailures(signature_radius)
         self.kinds: dict[str, int] = {}
         self.failure_nearest: list[float] = []  # each failure's Jaccard distance to the earlier ones
         self.failure_times: list[float] = []
-        self.failure_examples: list[dict[str, Any]] = []
-        self.execution_s = 0.0
+        self.distinct_examples: list[dict[str, Any]] = []
+        self.execution_s = self.charged_s = 0.0
         self.sample: list[dict[str, Any]] = []
         self._rng = np.random.default_rng([seed, 7])
 
-    def time_left(self) -> bool:
-        return self.clock() < self.deadline
+    def _canonical(self, row: np.ndarray):
+        return self.problem.canonical(*self.problem.codec.split(np.asarray(row, dtype=float)[None, :]))
 
     def seen(self, row: np.ndarray) -> bool:
-        """Already executed (distance 0 within the attribute tolerances)?"""
+        """Already sent to an executor (distance 0 within the attribute tolerances)?"""
         from ..core.diversity import nearest_distance
 
-        G, L = self.problem.canonical(*self.problem.codec.split(row[None, :]))
         if not len(self._executed[1]):
             return False
+        G, L = self._canonical(row)
         return bool(nearest_distance(G, L, *self._executed, self.problem.codec.attributes)[0] == 0)
 
-    def execute(self, row: np.ndarray, surrogate_f1: float, start: float) -> None:
-        """Run one scenario on the full model and count it, unless it ends after the budget."""
+    def near_failure(self, row: np.ndarray, now: float) -> bool:
+        """Within ``distinct_distance`` of a failure that had ended by ``now``?"""
         from ..core.diversity import nearest_distance
 
-        codec = self.problem.codec
-        t0 = self.clock()
-        k = self.executions + self.rejected + self.overrun  # the k-th scenario sent to the simulator
-        sim_seed = int(np.random.SeedSequence([self.seed, k]).generate_state(1)[0])
-        outcome = self.executor.execute(codec.from_row(row), seed=sim_seed)
-        t1 = self.clock()
-        if t1 > self.deadline:
-            self.overrun += 1
-            return
-        self.execution_s += t1 - t0
+        known = self._failed_end <= now
+        if not known.any():
+            return False
+        G, L = self._canonical(row)
+        d = nearest_distance(G, L, self._failed[0][known], self._failed[1][known], self.problem.codec.attributes)[0]
+        return bool(d <= self.distinct_distance)
+
+    def skip(self, row: np.ndarray, now: float) -> bool:
+        return self.seen(row) or self.near_failure(row, now)
+
+    def dispatch(self, row: np.ndarray) -> int:
+        """Mark a scenario as sent to an executor; returns its index k in the run (its simulator seed's)."""
+        G, L = self._canonical(row)
+        self._executed = (np.concatenate([self._executed[0], G]), np.concatenate([self._executed[1], L]))
+        self.dispatched += 1
+        return self.dispatched - 1
+
+    def record(self, row: np.ndarray, surrogate_f1: float, outcome, sim_seed: int, measured_s: float,
+               charged_s: float, end_s: float) -> None:
+        """Count one execution that ended within the budget at ``end_s`` on its executor's clock."""
+        from ..core.diversity import nearest_distance
+
+        self.execution_s += measured_s
+        self.charged_s += charged_s
         if outcome.failure_kind == "invalid_scenario":
             self.rejected += 1
             return
-        self.executions += 1
-        G, L = self.problem.canonical(*codec.split(row[None, :]))
-        self._executed = (np.concatenate([self._executed[0], G]), np.concatenate([self._executed[1], L]))
         self.kinds[outcome.failure_kind] = self.kinds.get(outcome.failure_kind, 0) + 1
+        self.invalid_tests += outcome.failure_kind == "invalid_test"
+        if not system_ran(outcome):  # an invalid test screened out before the system under test ran
+            self.screened_out += 1
+            return
+        self.executions += 1
         if outcome.failed:
+            codec = self.problem.codec
+            scenario = codec.from_row(row)
+            G, L = self._canonical(row)
             nearest = float(nearest_distance(G, L, *self._failed, codec.attributes)[0])
             self.failures += 1
-            self.distinct += nearest > self.distinct_distance
             self.failure_nearest.append(round(min(nearest, 1.0), 6))
-            self.failure_times.append(round(t1 - start, 3))
+            self.failure_times.append(round(end_s, 3))
             self._failed = (np.concatenate([self._failed[0], G]), np.concatenate([self._failed[1], L]))
-            if len(self.failure_examples) < 20:
-                self.failure_examples.append({"surrogate_f1": float(surrogate_f1), "kind": outcome.failure_kind,
-                                              "detail": outcome.detail,
-                                              "scenario": codec.from_row(row).to_dict()})
+            self._failed_end = np.append(self._failed_end, end_s)
+            sig = signature(self.problem, scenario, outcome, self.signature_radius)
+            if self.distinct.add(sig) and len(self.distinct_examples) < DISTINCT_KEPT:
+                self.distinct_examples.append({
+                    "signature": sig.to_dict(), "describe": sig.describe(), "kind": outcome.failure_kind,
+                    "verdict": outcome.verdict, "detail": outcome.detail, "reference": outcome.reference,
+                    "surrogate_f1": float(surrogate_f1), "time_s": round(end_s, 3), "sim_seed": int(sim_seed),
+                    "scenario": scenario.to_dict()})
         self._keep_sample(surrogate_f1, outcome)
 
     def _keep_sample(self, surrogate_f1: float, outcome) -> None:
@@ -148,94 +335,101 @@ class FullModelTally:
 
     def summary(self, budget: float) -> dict[str, Any]:
         keys = sorted({k for e in self.sample for k in e})
+        distinct = len(self.distinct)
         return {
             "executions": self.executions,
+            "failures": self.failures,
+            "distinct_failures": distinct,
+            "invalid_tests": self.invalid_tests,
+            "screened_out": self.screened_out,
             "rejected": self.rejected,
             "overrun_discarded": self.overrun,
-            "failures": self.failures,
-            "distinct_failures": int(self.distinct),
             "failures_per_hour": self.failures * 3600.0 / budget,
-            "distinct_per_hour": int(self.distinct) * 3600.0 / budget,
+            "distinct_per_hour": distinct * 3600.0 / budget,
             "failure_rate": self.failures / self.executions if self.executions else 0.0,
             "failure_kinds": dict(sorted(self.kinds.items())),
             "first_failure_s": self.failure_times[0] if self.failure_times else None,
             "execution_s": round(self.execution_s, 3),
+            "charged_s": round(self.charged_s, 3),
             "diversity": self.failure_diversity(),
             "failure_nearest": self.failure_nearest,
             "failure_times_s": self.failure_times,
-            "failure_examples": self.failure_examples,
+            "distinct_examples": self.distinct_examples,
             "sample": {k: [e.get(k) for e in self.sample] for k in keys},
         }
 
 
-def full_model_run(problem, settings, executor, fm: dict[str, Any], seed: int) -> dict[str, Any]:
-    """RQ3: generation and execution share one clock budget (see the module docstring)."""
-    from ..core.search import Search
-
-    clock = make_clock(fm["clock"])
+def full_model_run(problem, settings, executor, fm: dict[str, Any], seed: int,
+                   clock: Callable[[], float] | None = None, trace: list | None = None) -> dict[str, Any]:
+    """RQ3: one run of the schedule in the module docstring; ``clock`` measures (default ``fm['clock']``);
+    ``trace`` (a list) receives one event per execution: executor, start, end, produced, counted,
+    the search's evaluations and clock at the start."""
+    clock = clock or make_clock(fm["clock"])
+    real_start = time.perf_counter()
     budget = float(fm["time_budget_s"])
-    start = clock()
-    tally = FullModelTally(problem, executor, clock, start + budget, seed, fm["distinct_distance"])
-    best_f1, evaluations, rounds, search_s = 0.0, 0, 0, 0.0
-    if settings.algorithm == "random":
-        rng = np.random.default_rng(seed)
-        while tally.time_left():
-            t0 = clock()
-            X = problem.sample_rows(10, rng)
-            ev = problem.evaluate_rows(X)
-            search_s += clock() - t0
-            evaluations += len(X)
-            f1 = np.where(ev.valid, np.nan_to_num(ev.f1, nan=0.0), 0.0)
-            best_f1 = max(best_f1, float(f1.max(initial=0.0)))
-            for i in np.flatnonzero(ev.valid):
-                if not tally.time_left():
-                    break
-                tally.execute(X[i], f1[i], start)
-    else:
-        while tally.time_left():
-            left = tally.deadline - clock()
-            round_seed = int(np.random.SeedSequence([seed, rounds]).generate_state(1)[0] % 2**31)
-            s = dataclasses.replace(settings, seed=round_seed, time_budget=max(fm["search_share"] * left, 1e-3))
-            t0 = clock()
-            search = Search(problem, s)
-            found: list[tuple[np.ndarray, np.ndarray]] = []  # risky rows seen by this round (--execute risky)
-            while (X := search.ask()) is not None:
-                ev = problem.evaluate_rows(X)
-                search.tell(ev)
-                f1 = np.where(ev.valid, np.nan_to_num(ev.f1, nan=0.0), 0.0)
-                risky = f1 > problem.alpha
-                if fm["execute"] == "risky" and risky.any():
-                    found.append((X[risky], f1[risky]))
-            search_s += clock() - t0
-            evaluations += search.evaluations
-            best_f1 = max(best_f1, search.best_f1)
-            rounds += 1
-            pop = search.suite_population()
-            valid = np.array([bool(ind.get("info")["valid"]) for ind in pop], dtype=bool)
-            found.append((pop.get("X")[valid], pop.get("f1").astype(float)[valid]))
-            X = np.concatenate([x for x, _ in found])
-            f1 = np.concatenate([f for _, f in found])
-            for i in np.argsort(-f1, kind="stable"):  # best first; the same scenario only once
-                if not tally.time_left():
-                    break
-                if not tally.seen(X[i]):
-                    tally.execute(X[i], f1[i], start)
-    out = {"evaluations": evaluations, "wall_s": round(clock() - start, 3), "best_f1": best_f1,
-           "rounds": rounds, "search_s": round(search_s, 3), "time_budget_s": budget}
+    cost = float(fm.get("execution_cost_s", 0.0))
+    queue = CandidateQueue(best_first=settings.algorithm != "random")
+    search = SearchProcess(problem, settings, queue, clock)
+    tally = FullModelTally(problem, seed, fm.get("distinct_distance", 0.0), fm.get("signature_radius"))
+    learner = None
+    if fm.get("rerank", "surrogate") == "learned" and queue.best_first:
+        from .rerank import FailureModel
+
+        learner = FailureModel(problem, refit_every=int(fm.get("rerank_every", 10)))
+        queue.score = learner.score
+    free = [0.0] * max(1, int(fm.get("executors", 1)))  # each executor's clock
+    waited = 0.0
+    lessons: list[tuple[float, int, Candidate, Any]] = []  # executions the learner sees once they ended
+    while True:
+        e = int(np.argmin(free))
+        now = free[e]
+        if now >= budget:
+            break
+        refit = False
+        while lessons and lessons[0][0] <= now:
+            _, _, done, result = heapq.heappop(lessons)
+            refit |= learner.learn(done, result)
+        if refit:
+            queue.reorder()
+        while search.wanted() and search.t <= now:  # everything the search has produced by `now`
+            search.step()
+        t0 = clock()
+        cand = queue.pop(now, lambda c: tally.skip(c.row, now))
+        if cand is None:
+            nxt = queue.next_time()
+            if nxt is None and not search.exhausted:  # nothing left: the (idle) search runs now
+                search.t = max(search.t, now)
+                search.step()
+                continue
+            if nxt is None:
+                free[e] = math.inf  # the search can breed nothing new: this executor is done
+                continue
+            waited += nxt - now
+            free[e] = nxt
+            continue
+        k = tally.dispatch(cand.row)
+        sim_seed = int(np.random.SeedSequence([seed, k]).generate_state(1)[0])
+        outcome = executor.execute(problem.codec.from_row(cand.row), seed=sim_seed)
+        measured = clock() - t0
+        charged = measured + (cost if system_ran(outcome) else 0.0)
+        end = now + charged
+        free[e] = end
+        if trace is not None:
+            trace.append({"executor": e, "start": now, "end": end, "produced": cand.produced_s, "counted": end <= budget,
+                          "evaluations": search.evaluations, "search_t": search.t, "kind": outcome.failure_kind})
+        if end > budget:
+            tally.overrun += 1
+            continue
+        tally.record(cand.row, cand.f1, outcome, sim_seed, measured, charged, end)
+        if learner is not None and outcome.failure_kind != "invalid_scenario":
+            heapq.heappush(lessons, (end, k, cand, outcome))
+    out = {"evaluations": search.evaluations, "search_steps": search.steps, "search_s": round(search.busy, 3),
+           "best_f1": search.search.best_f1, "time_budget_s": budget, "executors": len(free),
+           "execution_cost_s": cost, "waited_s": round(waited, 3), "candidates_left": len(queue),
+           "wall_s": round(time.perf_counter() - real_start, 3)}
     out.update(tally.summary(budget))
     return out
 
 
-def break_even_seconds(a: dict[str, float], r: dict[str, float]) -> float | None:
-    """Execution time per scenario above which ``a`` finds more failures per hour than ``r``.
-
-    With failures per execution ``f`` and generation seconds per execution ``g``, an execution
-    costing ``c`` seconds gives ``f / (g + c)`` failures per second; the two are equal at
-    ``c = (f_r g_a - f_a g_r) / (f_a - f_r)``. None when ``a`` does not fail more often per execution.
-    """
-    if a["rate"] <= r["rate"]:
-        return None
-    return max((r["rate"] * a["gen"] - a["rate"] * r["gen"]) / (a["rate"] - r["rate"]), 0.0)
-
-
-__all__ = ["SAMPLE_CAP", "FullModelTally", "break_even_seconds", "full_model_run", "make_clock", "warm_up"]
+__all__ = ["DISTINCT_KEPT", "SAMPLE_CAP", "Candidate", "CandidateQueue", "FullModelTally", "SearchProcess",
+           "full_model_run", "make_clock", "system_ran", "warm_up"]

@@ -11,16 +11,17 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .. import __version__
-from ..core.names import EXECUTE_MODES  # what a search round hands to the simulator (see .pipeline)
 from ..core.problem import Budget
 
-# One RQ3 search round (population, offspring, evaluations): the paper's RQ3 settings.
+# The paper's RQ3 search (population, offspring, evaluations). The pipeline's search carries one
+# population on for the whole run and always uses at least these evaluations (see .pipeline).
 RQ3_ROUNDS = {
     "robot": Budget(100, 10, 4100),  # NSGA-II, 10 offspring, at most 400 generations
     "vehicle": Budget(100, 25, 5100),  # "5,100 evaluations (population 100, 200 generations, 25 offspring)"
     "thermostat": Budget(100, 25, 5100),  # no paper RQ3: as the vehicle
 }
 PAPER_RQ3_BUDGET_S = 7200.0
+RERANKS = ("surrogate", "learned")  # what orders the waiting candidates (see .pipeline, .rerank)
 
 
 class ExperimentError(ValueError):
@@ -39,11 +40,12 @@ class ExperimentSpec:
     full_model: bool = False
     config_file: str | None = None
     sim_options: dict[str, Any] = field(default_factory=dict)
-    round_evaluations: int | None = None
-    search_share: float = 0.5
     distinct_distance: float = 0.0
     clock: str = "wall"
-    execute: str = "suite"
+    executors: int = 1
+    execution_cost: float = 0.0
+    signature_radius: float | None = None
+    rerank: str = "surrogate"
 
     def check(self) -> None:
         from ..core.search import ALGORITHMS
@@ -60,20 +62,21 @@ class ExperimentSpec:
         if self.evaluations is not None and self.time_budget is not None:
             raise ExperimentError("--evaluations and --time-budget exclude each other")
         if self.full_model and self.evaluations is not None:
-            raise ExperimentError("--full-model runs on a clock budget (--time-budget); "
-                                  "a search round's size is --round-evaluations")
+            raise ExperimentError("--full-model runs on a clock budget (--time-budget)")
         if self.time_budget is not None and not self.time_budget > 0:
             raise ExperimentError("--time-budget: must be > 0 seconds")
-        if not 0 < self.search_share <= 1:
-            raise ExperimentError("--search-share: must be in (0, 1]")
         if self.distinct_distance < 0 or self.distinct_distance >= 1:
             raise ExperimentError("--distinct-distance: must be in [0, 1)")
         if self.clock not in ("wall", "cpu"):
             raise ExperimentError("--clock: wall|cpu")
-        if self.execute not in EXECUTE_MODES:
-            raise ExperimentError(f"--execute: {'|'.join(EXECUTE_MODES)}")
-        if self.round_evaluations is not None and self.round_evaluations < 2:
-            raise ExperimentError("--round-evaluations: must be >= 2")
+        if self.executors < 1:
+            raise ExperimentError("--executors: must be >= 1")
+        if not (self.execution_cost >= 0 and self.execution_cost < float("inf")):
+            raise ExperimentError("--execution-cost: must be >= 0 seconds")
+        if self.signature_radius is not None and not self.signature_radius >= 0:
+            raise ExperimentError("--signature-radius: must be >= 0")
+        if self.rerank not in RERANKS:
+            raise ExperimentError(f"--rerank: {'|'.join(RERANKS)}")
 
 
 def _plain_json(value: Any) -> Any:
@@ -96,7 +99,7 @@ def resolve(spec: ExperimentSpec) -> dict[str, Any]:
             rnd = RQ3_ROUNDS.get(spec.problem)
             if rnd is None:
                 raise ExperimentError(f"--full-model: no RQ3 setting for {spec.problem!r}")
-            overrides["evaluations"] = spec.round_evaluations or rnd.evaluations
+            overrides["evaluations"] = rnd.evaluations  # the search's guaranteed evaluations
             for name in ("population", "offspring"):
                 if name not in file_cfg:
                     overrides[name] = getattr(rnd, name)
@@ -119,14 +122,18 @@ def resolve(spec: ExperimentSpec) -> dict[str, Any]:
     }
     if spec.full_model:
         from ..sims.full_model import full_model_executor
+        from ..sims.signature import DEFAULT_RADIUS
 
         executor = full_model_executor(problem, **spec.sim_options)
         identity["full_model"] = {
             "time_budget_s": spec.time_budget or PAPER_RQ3_BUDGET_S,
             "clock": spec.clock,
-            "search_share": spec.search_share,
+            "executors": spec.executors,
+            "execution_cost_s": spec.execution_cost,
             "distinct_distance": spec.distinct_distance,
-            "execute": spec.execute,
+            "signature_radius": (DEFAULT_RADIUS[problem.name] if spec.signature_radius is None
+                                 else spec.signature_radius),
+            "rerank": spec.rerank,
             "simulator": executor.config_dict(),
         }
     return _plain_json(identity)
@@ -150,5 +157,5 @@ def differences(a: Any, b: Any, prefix: str = "") -> list[str]:
     return [] if a == b else [prefix or "(root)"]
 
 
-__all__ = ["EXECUTE_MODES", "PAPER_RQ3_BUDGET_S", "RQ3_ROUNDS", "ExperimentError", "ExperimentSpec",
+__all__ = ["PAPER_RQ3_BUDGET_S", "RERANKS", "RQ3_ROUNDS", "ExperimentError", "ExperimentSpec",
            "differences", "resolve", "run_identity"]

@@ -20,11 +20,12 @@ from .report import report
 
 CHECKPOINTS = 10
 SURROGATE_METRICS = ("best_f1", "diversity")
-FULL_MODEL_METRICS = ("failures_per_hour", "distinct_per_hour", "failures", "distinct_failures", "failure_rate",
-                      "executions", "best_f1", "diversity")
+FULL_MODEL_METRICS = ("distinct_per_hour", "failures_per_hour", "distinct_failures", "failures", "invalid_tests",
+                      "failure_rate", "executions", "best_f1", "diversity")
 BASE_COLUMNS = ("problem", "profile", "algorithm", "run", "seed", "evaluations", "wall_s", "best_f1", "diversity")
-FULL_MODEL_COLUMNS = ("executions", "failures", "distinct_failures", "failures_per_hour", "distinct_per_hour",
-                      "failure_rate", "rejected", "overrun_discarded", "rounds", "search_s", "execution_s",
+FULL_MODEL_COLUMNS = ("executions", "failures", "distinct_failures", "invalid_tests", "screened_out", "failures_per_hour",
+                      "distinct_per_hour", "failure_rate", "rejected", "overrun_discarded", "execution_cost_s",
+                      "executors", "search_steps", "search_s", "execution_s", "charged_s", "waited_s",
                       "first_failure_s", "failure_kinds")
 
 
@@ -121,14 +122,20 @@ def summarize(out: Path, config: dict[str, Any], records: list[dict]) -> dict[st
     if full:
         doc["spearman"] = correlations(records)
     write_atomic(paths["stats.json"], json.dumps(doc, indent=2) + "\n")
-    from ..viz.experiment import plot_experiment
+    from ..viz.experiment import plot_experiment, plot_gallery
 
     try:
         plots = plot_experiment(out, config, records, checkpoints)
     except Exception as exc:  # pictures must never cost the tables
         print(f"ambiegen experiment: plots skipped ({exc})", file=sys.stderr)
         plots = []
-    write_atomic(paths["report.md"], report(config, records, doc, plots))
+    gallery: list[dict[str, Any]] = []
+    if full:
+        try:
+            gallery = plot_gallery(out, config, records)
+        except Exception as exc:
+            print(f"ambiegen experiment: failure gallery skipped ({exc})", file=sys.stderr)
+    write_atomic(paths["report.md"], report(config, records, doc, plots, gallery))
     return paths
 
 

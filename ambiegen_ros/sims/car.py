@@ -352,11 +352,28 @@ class RoadCheck:
         return self.elements_built < self.elements
 
 
+_LAST_CHECK: list[Any] = [None, None, None]  # problem, genome bytes, RoadCheck: the executor asks twice in a row
+
+
 def road_check(problem: Any, scenario: Any) -> RoadCheck:
-    """Build a vehicle scenario's road and check it with the problem's rules (no surrogate drive)."""
+    """Build a vehicle scenario's road and check it with the problem's rules (no surrogate drive).
+
+    The last answer is kept: an execution asks for it twice (the problem's restrictions, then the
+    reference's competition rules), and building a replication road is most of a screening's time.
+    """
+    row = problem.codec.to_row(scenario)
+    key = row.tobytes()
+    if _LAST_CHECK[0] is problem and _LAST_CHECK[1] == key:
+        return _LAST_CHECK[2]
+    check = _road_check(problem, row)
+    _LAST_CHECK[:] = [problem, key, check]
+    return check
+
+
+def _road_check(problem: Any, row: np.ndarray) -> RoadCheck:
     from ..problems.vehicle import check_roads
 
-    G, lengths = problem.codec.split(problem.codec.to_row(scenario))
+    G, lengths = problem.codec.split(row)
     _, n_spine, nodes, n_nodes = problem.roads(G, lengths)
     valid, reasons, _, min_radius = check_roads(nodes, n_nodes, problem.config)
     elements = int(lengths[0])

@@ -1,4 +1,5 @@
-"""Experiment pictures: the paper's convergence boxplots, final F1 and diversity, RQ3 failures.
+"""Experiment pictures: the paper's convergence boxplots, final F1 and diversity, RQ3 failures,
+and the RQ3 failure gallery (one picture per distinct failure, ``gallery/``).
 
 Colours follow the paper's figures: GA (SO) red, NSGA-II (MO) blue, random green. Every title
 names the problem and the fidelity profile that made the numbers.
@@ -122,4 +123,63 @@ def plot_experiment(out: Path, config: dict[str, Any], records: list[dict], chec
     return written
 
 
-__all__ = ["plot_experiment"]
+GALLERY_PER_ALGORITHM = 12
+
+
+def _gallery_picks(records: list[dict], algorithm: str, radius: float | None, limit: int) -> list[tuple[dict, dict]]:
+    """Up to ``limit`` distinct failures of one algorithm: taken in turn from its runs, dropping any
+    that is the same failure (``sims.signature``) as one already picked from another run."""
+    from ..sims.signature import FailureSignature, same_failure
+
+    runs = sorted((r for r in records if r["algorithm"] == algorithm), key=lambda r: r["run"])
+    queues = [[(r, e) for e in r.get("distinct_examples") or []] for r in runs]
+    picks: list[tuple[dict, dict]] = []
+    signatures: list[FailureSignature] = []
+    while len(picks) < limit and any(queues):
+        for q in queues:
+            if not q or len(picks) >= limit:
+                continue
+            rec, entry = q.pop(0)
+            sig = entry["signature"]
+            sig = FailureSignature(sig["problem"], sig["kind"], None if sig["place"] is None else tuple(sig["place"]))
+            if any(same_failure(sig, other, radius) for other in signatures):
+                continue
+            signatures.append(sig)
+            picks.append((rec, entry))
+    return picks
+
+
+def plot_gallery(out: Path, config: dict[str, Any], records: list[dict],
+                 per_algorithm: int = GALLERY_PER_ALGORITHM) -> list[dict[str, Any]]:
+    """One picture per distinct failure (up to ``per_algorithm`` each) under ``out/gallery``, the
+    scenario JSON next to it. The failure is executed again with its recorded simulator seed, which
+    reproduces the outcome (``FullModelExecutor`` is deterministic given the seed)."""
+    import json
+
+    from ..problems import get_problem
+    from ..sims.full_model import FullModelExecutor, sim_config
+    from .execution import save_execution_plot
+
+    identity = config["identity"]
+    fm = identity["full_model"]
+    problem = get_problem(identity["problem"], identity["problem_config"])
+    executor = FullModelExecutor(problem, sim_config(problem.name, fm["simulator"]))
+    folder = Path(out) / "gallery"
+    entries = []
+    for alg in config["algorithms"]:
+        for i, (rec, entry) in enumerate(_gallery_picks(records, alg, fm.get("signature_radius"), per_algorithm)):
+            scenario = problem.parse(entry["scenario"])
+            outcome = executor.execute(scenario, seed=entry["sim_seed"])
+            stem = f"{alg}-{i + 1:02d}"
+            png = save_execution_plot(problem, scenario, outcome, folder / f"{stem}.png")
+            doc = {"algorithm": alg, "run": rec["run"], "sim_seed": entry["sim_seed"], "signature": entry["signature"],
+                   "failure": entry["describe"], "verdict_in_run": entry["verdict"], "verdict_again": outcome.verdict,
+                   "detail": entry["detail"], "surrogate_f1": entry["surrogate_f1"], "time_s": entry["time_s"],
+                   "scenario": entry["scenario"]}
+            (folder / f"{stem}.json").write_text(json.dumps(doc, indent=1) + "\n")
+            entries.append({"algorithm": alg, "run": rec["run"], "png": png, "json": folder / f"{stem}.json",
+                            "failure": entry["describe"], "verdict": outcome.verdict})
+    return entries
+
+
+__all__ = ["GALLERY_PER_ALGORITHM", "plot_experiment", "plot_gallery"]

@@ -28,16 +28,18 @@ def before(problem: Any, scenario: Any, config: car.CarSimConfig) -> ReferenceVe
     """The competition rules on the road the car would drive (a road the builder cut breaks them)."""
     check = car.road_check(problem, scenario)
     pc = problem.config
-    lane_width = config.lane_width or float(pc.lane_width)
-    # the replication profile's sharpness check runs on its spline re-sampled every metre, not on
-    # the ~8 m nodes the car drives; the refined road's nodes are that 1 m sampling already
-    radius = check.min_radius if pc.profile == "replication" else None
-    _, reason = competition_rules(check.road, lane_width, pc.map_size, pc.margin, pc.min_radius, radius=radius)
-    reasons = [reason] if reason else []
-    if check.cut:
+    reasons = []
+    if check.cut:  # reason enough: the road the scenario describes leaves the map (most random roads)
         length = float(np.hypot(*np.diff(check.road, axis=0).T).sum())
-        reasons.insert(0, f"road leaves the map: the road builder cut it after {check.elements_built} of "
-                          f"{check.elements} elements, {length:.0f} m along it")
+        reasons.append(f"road leaves the map: the road builder cut it after {check.elements_built} of "
+                       f"{check.elements} elements, {length:.0f} m along it")
+    else:
+        lane_width = config.lane_width or float(pc.lane_width)
+        # the replication profile's sharpness check runs on its spline re-sampled every metre, not on
+        # the ~8 m nodes the car drives; the refined road's nodes are that 1 m sampling already
+        radius = check.min_radius if pc.profile == "replication" else None
+        _, reason = competition_rules(check.road, lane_width, pc.map_size, pc.margin, pc.min_radius, radius=radius)
+        reasons += [reason] if reason else []
     metrics = {"road_cut": check.cut, "elements_built": check.elements_built}
     if reasons:
         return ReferenceVerdict(False, "competition_rules", "; ".join(reasons), metrics)
