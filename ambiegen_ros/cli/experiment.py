@@ -18,7 +18,7 @@ def _spec_from_args(args: argparse.Namespace):
         evaluations=args.evaluations, time_budget=args.time_budget, full_model=args.full_model,
         config_file=args.config, sim_options=parse_options(args.set), distinct_distance=args.distinct_distance,
         clock=args.clock, executors=args.executors, execution_cost=args.execution_cost,
-        signature_radius=args.signature_radius, rerank=args.rerank,
+        signature_radius=args.signature_radius,
     )
 
 
@@ -55,7 +55,6 @@ def cmd_experiment(args: argparse.Namespace) -> int:
 
 def register(sub) -> None:
     """Add ``experiment`` to ``ambiegen``'s subparsers."""
-    from ..experiment.spec import RERANKS
     from ..problems import PROBLEM_NAMES, PROFILES
 
     p = sub.add_parser("experiment", help="the paper's RQ1-RQ3: repeated runs, statistics, report and plots",
@@ -95,9 +94,6 @@ def register(sub) -> None:
     p.add_argument("--signature-radius", type=float, metavar="R",
                    help="--full-model: two failures of the same kind are the same when this close: robot metres "
                         "(default 2), vehicle metres of road (default 10), thermostat schedule elements (default 0)")
-    p.add_argument("--rerank", choices=RERANKS, default="surrogate",
-                   help="--full-model: order of the waiting candidates: surrogate F1 (default) or a failure-"
-                        "probability model learned from the executions so far (learned)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_experiment)
 

@@ -11,7 +11,6 @@ REFERENCES = ("parent", "front")
 PROFILES = ("replication", "refined")
 """replication: the authors' code, which made the paper's tables; refined: the paper's text."""
 DEFAULT_PROFILE = "replication"
-EXECUTE_MODES = ("suite", "risky")
-"""What an RQ3 search round hands to the simulator: its suite, or every risky scenario it evaluated."""
+"""The profile a run uses unless told otherwise."""
 
-__all__ = ["ALGORITHMS", "DEFAULT_PROFILE", "EXECUTE_MODES", "PROFILES", "REFERENCES"]
+__all__ = ["ALGORITHMS", "DEFAULT_PROFILE", "PROFILES", "REFERENCES"]

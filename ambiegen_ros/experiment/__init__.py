@@ -27,7 +27,7 @@ from __future__ import annotations
 
 # One module per concern: spec (request, identity), runner (pool, resume, progress), records (run
 # files), pipeline (RQ3 full-model search + execution), summary (tables, statistics), report (text).
-# Names load on first use, so that the command line can read ``spec.RERANKS`` cheaply.
+# Names load on first use, so that the command line starts without numpy or pymoo.
 from importlib import import_module
 from typing import Any
 
@@ -36,7 +36,7 @@ _HOMES = {
     "records": ("run_path", "write_atomic"),
     "report": ("ALGORITHM_LABELS", "PAPER_MEDIANS", "PAPER_RQ3", "PAPER_TESTS", "median", "report"),
     "runner": ("ExperimentProgress", "default_jobs", "prepare", "run_experiment", "run_task"),
-    "spec": ("PAPER_RQ3_BUDGET_S", "RERANKS", "RQ3_ROUNDS", "ExperimentError", "ExperimentSpec", "resolve",
+    "spec": ("PAPER_RQ3_BUDGET_S", "RQ3_ROUNDS", "ExperimentError", "ExperimentSpec", "resolve",
              "run_identity"),
     "summary": ("CHECKPOINTS", "checkpoint_table", "correlations", "statistics", "summarize"),
 }

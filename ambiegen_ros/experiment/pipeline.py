@@ -12,8 +12,7 @@ of measured times:
   process: it samples a batch per step and every valid sample is a candidate.
 * **E executors** (``--executors``, default 1) each have their own clock. An executor that is
   free at time t takes the best waiting candidate produced at or before t: highest surrogate F1
-  first (random: in the order sampled; ``--rerank learned``: a failure-probability model, see
-  ``.rerank``), skipping any already executed (Jaccard distance 0 within the attribute
+  first (random: in the order sampled), skipping any already executed (Jaccard distance 0 within the attribute
   tolerances) or within ``--distinct-distance`` of a failure that had ended by t. Its clock
   advances by the measured execution time plus ``--execution-cost`` S (charged, never slept: a
   0.04 s car and a 30 s simulator are both honest settings) whenever the system under test ran: a
@@ -84,7 +83,6 @@ class Candidate:
     f1: float
     produced_s: float
     order: int
-    metrics: dict[str, float]
 
 
 class CandidateQueue:
@@ -93,41 +91,27 @@ class CandidateQueue:
 
     def __init__(self, best_first: bool):
         self.best_first = best_first
-        self.score: Callable[[list[Candidate]], np.ndarray] | None = None  # --rerank: higher = sooner
         self._future: deque[Candidate] = deque()
         self._ready: list[tuple[float, int, Candidate]] = []
         self._keys: set[bytes] = set()
         self._order = itertools.count()
 
-    def push(self, row: np.ndarray, f1: float, produced_s: float, metrics: dict[str, float]) -> bool:
+    def push(self, row: np.ndarray, f1: float, produced_s: float) -> bool:
         """Add a candidate once (a scenario already queued or executed is not added again)."""
         key = np.asarray(row, dtype=float).tobytes()
         if key in self._keys:
             return False
         self._keys.add(key)
-        self._future.append(Candidate(np.array(row, dtype=float), float(f1), produced_s, next(self._order), metrics))
+        self._future.append(Candidate(np.array(row, dtype=float), float(f1), produced_s, next(self._order)))
         return True
 
-    def _priority(self, c: Candidate, score: float | None = None) -> float:
-        if not self.best_first:
-            return float(c.order)
-        return -(c.f1 if score is None else score)
+    def _priority(self, c: Candidate) -> float:
+        return -c.f1 if self.best_first else float(c.order)
 
     def _release(self, now: float) -> None:
-        moved = []
         while self._future and self._future[0].produced_s <= now:
-            moved.append(self._future.popleft())
-        scores = self.score(moved) if (self.score is not None and moved) else [None] * len(moved)
-        for c, s in zip(moved, scores):
-            heapq.heappush(self._ready, (self._priority(c, s), c.order, c))
-
-    def reorder(self) -> None:
-        """Re-score every available candidate (after the rerank model was refitted)."""
-        if self.score is None or not self._ready:
-            return
-        items = [c for _, _, c in self._ready]
-        self._ready = [(self._priority(c, s), c.order, c) for c, s in zip(items, self.score(items))]
-        heapq.heapify(self._ready)
+            c = self._future.popleft()
+            heapq.heappush(self._ready, (self._priority(c), c.order, c))
 
     def pop(self, now: float, skip: Callable[[Candidate], bool]) -> Candidate | None:
         """The best candidate available at ``now`` that ``skip`` does not drop (dropped ones are gone)."""
@@ -181,18 +165,18 @@ class SearchProcess:
         f1 = np.where(ev.valid, np.nan_to_num(ev.f1, nan=0.0), 0.0).astype(float)
         pick = np.asarray(ev.valid, dtype=bool) if self.random else (np.asarray(ev.valid, dtype=bool)
                                                                       & (f1 > self.problem.alpha))
-        rows = [(X[i], f1[i], _numeric(ev.row(i))) for i in np.flatnonzero(pick)]
+        rows = [(X[i], f1[i]) for i in np.flatnonzero(pick)]
         if not self.random:
             pop = self.search.suite_population()
             for ind in pop:
                 info = ind.get("info")
                 if info is not None and info.get("valid"):
-                    rows.append((ind.get("X"), float(ind.get("f1")), _numeric(info)))
+                    rows.append((ind.get("X"), float(ind.get("f1"))))
         spent = self.clock() - t0
         self.t += spent
         self.busy += spent
         self.steps += 1
-        return sum(self.queue.push(row, f, self.t, m) for row, f, m in rows)
+        return sum(self.queue.push(row, f, self.t) for row, f in rows)
 
 
 def system_ran(outcome) -> bool:
@@ -201,13 +185,6 @@ def system_ran(outcome) -> bool:
     if outcome.failure_kind == "invalid_scenario":
         return False
     return not (outcome.failure_kind == "invalid_test" and "sut_failure_kind" not in (outcome.metrics or {}))
-
-
-def _numeric(info: dict[str, Any]) -> dict[str, float]:
-    """The surrogate's numeric metrics of one scenario (features for --rerank learned)."""
-    return {k: float(v) for k, v in info.items()
-            if k not in ("valid", "reason") and isinstance(v, (int, float, np.integer, np.floating))
-            and not isinstance(v, bool) and math.isfinite(float(v))}
 
 
 class FullModelTally:
@@ -371,26 +348,13 @@ def full_model_run(problem, settings, executor, fm: dict[str, Any], seed: int,
     queue = CandidateQueue(best_first=settings.algorithm != "random")
     search = SearchProcess(problem, settings, queue, clock)
     tally = FullModelTally(problem, seed, fm.get("distinct_distance", 0.0), fm.get("signature_radius"))
-    learner = None
-    if fm.get("rerank", "surrogate") == "learned" and queue.best_first:
-        from .rerank import FailureModel
-
-        learner = FailureModel(problem, refit_every=int(fm.get("rerank_every", 10)))
-        queue.score = learner.score
     free = [0.0] * max(1, int(fm.get("executors", 1)))  # each executor's clock
     waited = 0.0
-    lessons: list[tuple[float, int, Candidate, Any]] = []  # executions the learner sees once they ended
     while True:
         e = int(np.argmin(free))
         now = free[e]
         if now >= budget:
             break
-        refit = False
-        while lessons and lessons[0][0] <= now:
-            _, _, done, result = heapq.heappop(lessons)
-            refit |= learner.learn(done, result)
-        if refit:
-            queue.reorder()
         while search.wanted() and search.t <= now:  # everything the search has produced by `now`
             search.step()
         t0 = clock()
@@ -421,8 +385,6 @@ def full_model_run(problem, settings, executor, fm: dict[str, Any], seed: int,
             tally.overrun += 1
             continue
         tally.record(cand.row, cand.f1, outcome, sim_seed, measured, charged, end)
-        if learner is not None and outcome.failure_kind != "invalid_scenario":
-            heapq.heappush(lessons, (end, k, cand, outcome))
     out = {"evaluations": search.evaluations, "search_steps": search.steps, "search_s": round(search.busy, 3),
            "best_f1": search.search.best_f1, "time_budget_s": budget, "executors": len(free),
            "execution_cost_s": cost, "waited_s": round(waited, 3), "candidates_left": len(queue),

@@ -184,8 +184,7 @@ def report(config: dict[str, Any], records: list[dict], doc: dict[str, Any], plo
               f"Budget per run: {fm['time_budget_s']:g} s on the executors' clocks ({fm['clock']} clock measures; "
               f"{fm.get('executors', 1)} executor(s) beside the search, each execution charged its measured time "
               f"+ {fm.get('execution_cost_s', 0):g} s). The search carries one population on and runs at the same "
-              f"time (docs/rq3_pipeline.md). Candidates are ordered by {fm.get('rerank', 'surrogate')} "
-              f"{'F1' if fm.get('rerank', 'surrogate') == 'surrogate' else 'failure probability'}; a candidate "
+              f"time (docs/rq3_pipeline.md). Candidates are ordered by surrogate F1; a candidate "
               f"within Jaccard distance {fm['distinct_distance']:g} of an executed failure is skipped. A failure "
               "counts once the problem's reference passes (certified); scenarios no reference passes are invalid "
               f"tests, never failures. Distinct = different signature (signature radius {fm.get('signature_radius')}).",

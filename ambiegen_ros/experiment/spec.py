@@ -21,7 +21,6 @@ RQ3_ROUNDS = {
     "thermostat": Budget(100, 25, 5100),  # no paper RQ3: as the vehicle
 }
 PAPER_RQ3_BUDGET_S = 7200.0
-RERANKS = ("surrogate", "learned")  # what orders the waiting candidates (see .pipeline, .rerank)
 
 
 class ExperimentError(ValueError):
@@ -45,7 +44,6 @@ class ExperimentSpec:
     executors: int = 1
     execution_cost: float = 0.0
     signature_radius: float | None = None
-    rerank: str = "surrogate"
 
     def check(self) -> None:
         from ..core.search import ALGORITHMS
@@ -75,8 +73,6 @@ class ExperimentSpec:
             raise ExperimentError("--execution-cost: must be >= 0 seconds")
         if self.signature_radius is not None and not self.signature_radius >= 0:
             raise ExperimentError("--signature-radius: must be >= 0")
-        if self.rerank not in RERANKS:
-            raise ExperimentError(f"--rerank: {'|'.join(RERANKS)}")
 
 
 def _plain_json(value: Any) -> Any:
@@ -133,7 +129,6 @@ def resolve(spec: ExperimentSpec) -> dict[str, Any]:
             "distinct_distance": spec.distinct_distance,
             "signature_radius": (DEFAULT_RADIUS[problem.name] if spec.signature_radius is None
                                  else spec.signature_radius),
-            "rerank": spec.rerank,
             "simulator": executor.config_dict(),
         }
     return _plain_json(identity)
@@ -157,5 +152,5 @@ def differences(a: Any, b: Any, prefix: str = "") -> list[str]:
     return [] if a == b else [prefix or "(root)"]
 
 
-__all__ = ["PAPER_RQ3_BUDGET_S", "RERANKS", "RQ3_ROUNDS", "ExperimentError", "ExperimentSpec",
+__all__ = ["PAPER_RQ3_BUDGET_S", "RQ3_ROUNDS", "ExperimentError", "ExperimentSpec",
            "differences", "resolve", "run_identity"]

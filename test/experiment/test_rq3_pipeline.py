@@ -127,8 +127,8 @@ def test_queue_orders_best_first_and_skips_executed_and_near_failures():
     problem = get_problem("thermostat")
     rows = problem.sample_rows(3, np.random.default_rng(4))
     q = CandidateQueue(best_first=True)
-    assert q.push(rows[0], 1.0, 0.0, {}) and q.push(rows[1], 3.0, 0.0, {}) and q.push(rows[2], 2.0, 5.0, {})
-    assert not q.push(rows[0], 9.0, 1.0, {})  # the same scenario once
+    assert q.push(rows[0], 1.0, 0.0) and q.push(rows[1], 3.0, 0.0) and q.push(rows[2], 2.0, 5.0)
+    assert not q.push(rows[0], 9.0, 1.0)  # the same scenario once
     assert q.pop(1.0, lambda c: False).f1 == 3.0  # rows[2] is not produced yet at t = 1
     assert q.next_time() == 5.0 and q.pop(6.0, lambda c: False).f1 == 2.0
 
@@ -283,30 +283,3 @@ def test_gallery_writes_a_picture_and_the_scenario_per_distinct_failure(tmp_path
     text = report(config, [rec], {"runs": {"nsga2": 1}, "tests": []}, [], gallery)
     assert "## Failure gallery" in text and "(gallery/nsga2-01.png)" in text and "gallery/nsga2-01.json" in text
 
-
-def test_learned_rerank_puts_what_failed_before_first():
-    from ambiegen_ros.experiment.pipeline import Candidate
-    from ambiegen_ros.experiment.rerank import FailureModel
-
-    rng = np.random.default_rng(0)
-    model = FailureModel(None, refit_every=10)
-    cands = [Candidate(rng.uniform(0, 1, 4), float(rng.uniform()), 0.0, i, {"m": float(rng.uniform())})
-             for i in range(60)]
-    assert np.array_equal(model.score(cands), [c.f1 for c in cands])  # the surrogate's order until fitted
-    refits = [model.learn(c, Outcome(objectives={}, failed=bool(c.row[0] > 0.5))) for c in cands[:40]]
-    assert sum(refits) == 4 and model.fits == 4
-    p = model.score(cands[40:])
-    truth = np.array([c.row[0] > 0.5 for c in cands[40:]])
-    assert p[truth].mean() > 0.6 > 0.4 > p[~truth].mean()  # the failure-prone ones first, whatever the F1
-
-    q = CandidateQueue(best_first=True)
-    q.score = model.score
-    for c in cands[40:]:
-        q.push(c.row, c.f1, 0.0, c.metrics)
-    first = q.pop(0.0, lambda c: False)
-    assert first.row[0] > 0.5 and model.score([first])[0] == p.max()
-
-
-def test_learned_rerank_runs_in_the_pipeline():
-    out, trace = run(budget=60.0, cost=1.0, per_batch=0.01, fail_every=3, rerank="learned")
-    assert out["executions"] > 20 and out["failures"] == sum(t["kind"] == "requirement" for t in trace if t["counted"])
