@@ -201,7 +201,12 @@ class FullModelTally:
         self.signature_radius = signature_radius
         codec = problem.codec
         shape = (0, codec.m_max, len(codec.attributes))
-        self._executed = (np.zeros(shape), np.zeros(0, dtype=int))
+        # sent to an executor: a buffer grown by doubling (a run may screen out tens of thousands of
+        # roads, and copying the whole history per dispatch made it quadratic, charged to the clock)
+        self._sent_G = np.zeros((64, *shape[1:]))
+        self._sent_L = np.zeros(64, dtype=int)
+        self._sent_active = np.zeros(64, dtype=bool)  # screened-out rows are dropped: nothing ran
+        self._sent_at: dict[bytes, int] = {}
         self._failed = (np.zeros(shape), np.zeros(0, dtype=int))
         self._failed_end = np.zeros(0)
         self.dispatched = 0
@@ -220,13 +225,18 @@ class FullModelTally:
         return self.problem.canonical(*self.problem.codec.split(np.asarray(row, dtype=float)[None, :]))
 
     def seen(self, row: np.ndarray) -> bool:
-        """Already sent to an executor (distance 0 within the attribute tolerances)?"""
-        from ..core.diversity import nearest_distance
-
-        if not len(self._executed[1]):
-            return False
+        """Already sent to an executor (distance 0 within the attribute tolerances: the same length
+        and every element the same)? Scenarios screened out before anything ran do not count."""
         G, L = self._canonical(row)
-        return bool(nearest_distance(G, L, *self._executed, self.problem.codec.attributes)[0] == 0)
+        n = self.dispatched
+        ref = np.flatnonzero(self._sent_active[:n] & (self._sent_L[:n] == L[0]))
+        if not len(ref):
+            return False
+        m = int(L[0])
+        same = np.ones((len(ref), m), dtype=bool)
+        for j, attr in enumerate(self.problem.codec.attributes):
+            same &= attr.same(self._sent_G[ref, :m, j], G[:, :m, j])
+        return bool(same.all(axis=1).any())
 
     def near_failure(self, row: np.ndarray, now: float) -> bool:
         """Within ``distinct_distance`` of a failure that had ended by ``now``?"""
@@ -245,9 +255,14 @@ class FullModelTally:
     def dispatch(self, row: np.ndarray) -> int:
         """Mark a scenario as sent to an executor; returns its index k in the run (its simulator seed's)."""
         G, L = self._canonical(row)
-        self._executed = (np.concatenate([self._executed[0], G]), np.concatenate([self._executed[1], L]))
+        k = self.dispatched
+        if k == len(self._sent_L):
+            grow = lambda a: np.concatenate([a, np.zeros_like(a)])  # noqa: E731
+            self._sent_G, self._sent_L, self._sent_active = map(grow, (self._sent_G, self._sent_L, self._sent_active))
+        self._sent_G[k], self._sent_L[k], self._sent_active[k] = G[0], L[0], True
+        self._sent_at[np.asarray(row, dtype=float).tobytes()] = k
         self.dispatched += 1
-        return self.dispatched - 1
+        return k
 
     def record(self, row: np.ndarray, surrogate_f1: float, outcome, sim_seed: int, measured_s: float,
                charged_s: float, end_s: float) -> None:
@@ -263,6 +278,9 @@ class FullModelTally:
         self.invalid_tests += outcome.failure_kind == "invalid_test"
         if not system_ran(outcome):  # an invalid test screened out before the system under test ran
             self.screened_out += 1
+            k = self._sent_at.pop(np.asarray(row, dtype=float).tobytes(), None)
+            if k is not None:
+                self._sent_active[k] = False
             return
         self.executions += 1
         if outcome.failed:
