@@ -145,6 +145,11 @@ class Problem(ABC):
         """
         return G, lengths
 
+    def search_operators(self, settings: Any) -> dict[str, Any]:
+        """pymoo operators this problem replaces for its profile (keys of pymoo's GA/NSGA2
+        arguments: ``eliminate_duplicates``, ``mutation``, ...). Default: none, the generic ones."""
+        return {}
+
     # --- conveniences built on the three parts ---------------------------------------------------
     def parse(self, data: dict[str, Any]) -> Scenario:
         return self.codec.validate(data)

@@ -130,6 +130,9 @@ class Search:
             mutation=ScenarioMutation(prob=s.mutation_rate),
             eliminate_duplicates=ScenarioDuplicateElimination(problem),
         )
+        # a case study may replace some for its profile (the vehicle's replication profile compares
+        # duplicates road by road)
+        operators.update(problem.search_operators(s))
         self._algorithm = NSGA2(**operators) if mo else GA(**operators)
         self._algorithm.setup(self._pymoo_problem, termination=NoTermination(), seed=s.seed, verbose=False)
 

@@ -55,6 +55,17 @@ class VehicleProblem(Problem):
         G[:, :, LENGTH] = np.where(~straight & used, self.attributes[LENGTH].low, G[:, :, LENGTH])
         return G, lengths
 
+    def search_operators(self, settings) -> dict:
+        """Read by ``core.search``. Replication: duplicates are compared road by road (a genome's
+        elements past the map cut are ignored, as the replication code drops them), else clones of
+        one road fill the population and the search stops (issue 17, ``docs/vehicle_search.md``).
+        Refined roads use every element: the generic operators. pymoo is imported only here."""
+        if not self.replication:
+            return {}
+        from .operators import RoadDuplicateElimination
+
+        return {"eliminate_duplicates": RoadDuplicateElimination(self)}
+
     # --- sampling ------------------------------------------------------------------------------------
     def _types(self, n: int, m: int, rng: np.random.Generator) -> np.ndarray:
         """Segment types: a Markov chain from ``first_type`` (or uniform)."""
