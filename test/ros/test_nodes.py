@@ -47,7 +47,8 @@ pytestmark = pytest.mark.skipif(
 SIM_TIMEOUT = FAILURE_KINDS["sim_timeout"]
 INVALID = FAILURE_KINDS["invalid_scenario"]
 DONE = re.compile(
-    r"run (\S+) done: (\d+) scenarios, (\d+) settled, (\d+) failures, (\d+) timeouts, (\d+) errors, (\d+) invalid"
+    r"run (\S+) done: (\d+) scenarios, (\d+) settled, (\d+) failures, (\d+) invalid tests, (\d+) timeouts, "
+    r"(\d+) errors, (\d+) invalid"
 )
 
 
@@ -171,7 +172,7 @@ def _read_run(mcap: Path) -> dict[str, Any]:
 def _done_line(log: str) -> dict[str, Any]:
     match = DONE.search(log)
     assert match, f"no 'done' line in the generator log:\n{log[-2000:]}"
-    keys = ("run_id", "scenarios", "settled", "failures", "timeouts", "errors", "invalid")
+    keys = ("run_id", "scenarios", "settled", "failures", "invalid_tests", "timeouts", "errors", "invalid")
     return {k: (v if k == "run_id" else int(v)) for k, v in zip(keys, match.groups())}
 
 
@@ -189,8 +190,8 @@ def _assert_summary_consistent(summary: dict[str, Any], out: Path) -> None:
     done = _done_line((out / "logs" / "generator.log").read_text())
     assert done["run_id"] == summary["run_id"]
     assert (done["scenarios"], done["settled"]) == (summary["scenarios_published"], summary["results_received"]), brief
-    assert (done["failures"], done["timeouts"], done["errors"], done["invalid"]) == (
-        summary["failures"], summary["timeouts"], summary["errors"], summary["invalid"]
+    assert (done["failures"], done["invalid_tests"], done["timeouts"], done["errors"], done["invalid"]) == (
+        summary["failures"], summary["invalid_tests"], summary["timeouts"], summary["errors"], summary["invalid"]
     ), brief
 
 
