@@ -46,6 +46,7 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--seed", type=int, default=0, help="simulator seed (sensor noise); default 0")
     p.add_argument("--set", action="append", default=[], metavar="OPTION=VALUE",
-                   help="simulator option, e.g. oob_tolerance=0.95 or controller=pid (repeatable)")
+                   help="simulator option, e.g. oob_tolerance=0.95, controller=pid, or reference=false "
+                        "(no reference check: the old verdicts) (repeatable)")
     add_profile_option(p)
     p.set_defaults(func=cmd_execute)
