@@ -227,16 +227,17 @@ class FullModelTally:
     def seen(self, row: np.ndarray) -> bool:
         """Already sent to an executor (distance 0 within the attribute tolerances: the same length
         and every element the same)? Scenarios screened out before anything ran do not count."""
+        from ..core.diversity import jaccard_distance
+
         G, L = self._canonical(row)
         n = self.dispatched
-        ref = np.flatnonzero(self._sent_active[:n] & (self._sent_L[:n] == L[0]))
+        ref = np.flatnonzero(self._sent_active[:n] & (self._sent_L[:n] == L[0]))  # distance 0 needs equal lengths
         if not len(ref):
             return False
-        m = int(L[0])
-        same = np.ones((len(ref), m), dtype=bool)
-        for j, attr in enumerate(self.problem.codec.attributes):
-            same &= attr.same(self._sent_G[ref, :m, j], G[:, :m, j])
-        return bool(same.all(axis=1).any())
+        k = len(ref)
+        d = jaccard_distance(np.repeat(G, k, axis=0), np.repeat(L, k), self._sent_G[ref], self._sent_L[ref],
+                             self.problem.codec.attributes)
+        return bool((d == 0).any())
 
     def near_failure(self, row: np.ndarray, now: float) -> bool:
         """Within ``distinct_distance`` of a failure that had ended by ``now``?"""

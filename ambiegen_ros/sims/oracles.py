@@ -153,7 +153,6 @@ class RobotJudge(_Judge):
             return False
         yaw = self._headings(x, y) if yaw is None else np.atleast_1d(np.asarray(yaw, dtype=float))
         flags = np.zeros(len(t), dtype=bool) if stall is None else np.atleast_1d(np.asarray(stall)).astype(bool)
-        cfg = self.cfg
         clear = self.walls.clearance(x, y, yaw)
         if self.monitors is None:
             self._start(float(x[0]), float(y[0]))
