@@ -25,6 +25,7 @@ setup(
         ("share/" + PACKAGE, ["package.xml"]),
         ("share/" + PACKAGE + "/launch", glob("launch/*.py")),
         ("share/" + PACKAGE + "/config", glob("config/*.yaml")),
+        ("share/" + PACKAGE + "/config/nav2", glob("config/nav2/*.yaml")),
         # the message definitions, so the DDS backend can build the types without a ROS install
         ("share/" + PACKAGE + "/ambiegen_msgs/msg", glob("ambiegen_msgs/msg/*.msg")),
     ],

@@ -7,6 +7,12 @@ the fidelity profile the run used). The log is ``DIR/<run id>_<UTC time>.mcap``;
 non-empty ``DIR`` is refused unless ``--overwrite``. The generator writes the final suite to
 ``DIR/suite.json``; the same seed gives the same bytes there and the same scenarios and F1 values
 in the log, with any number of workers. Node logs go to ``DIR/logs/``.
+
+``stack="nd"`` (robot only) puts a ROS navigation stack behind ``sut_adapter`` in place of the
+sim workers: ``robot_world`` hosts each map and ``nd_driver`` (the full model's route and
+Nearness Diagram, on Nav2's topics) drives in it, in lockstep, so every verdict is the in-process
+full model's for the world's seed (the campaign's). The recorder also logs the robot's topics
+(``STACK_TOPICS``): the log replays as a robot bag in Foxglove or RViz.
 """
 from __future__ import annotations
 
@@ -44,6 +50,10 @@ def discovery_scope(requested: str | None, env: dict[str, str]) -> str:
 
 # the sim node of each problem, run as a module (the launch file runs the same one as an executable)
 SIM_MODULES = {problem: f"sim_nodes.{executable}" for problem, executable in SIM_EXECUTABLES.items()}
+STACKS = ("nd",)
+STACK_TOPICS = ("/map", "/initialpose", "/goal_pose", "/scan", "/odom", "/tf", "/tf_static", "/cmd_vel", "/plan",
+                "/collision", "/nd_driver/stall")
+"""What a robot stack campaign records besides the AmbieGen topics (types and QoS: the publishers')."""
 
 
 @dataclass
@@ -69,6 +79,16 @@ class CampaignSpec:
     overwrite: bool = False  # write into an `out` that already holds files (a log is still never replaced)
     remote_workers: int = 0  # sim workers started on other machines: the generator waits for them too
     discovery_range: str | None = None  # ROS_AUTOMATIC_DISCOVERY_RANGE of every node (None: see discovery_scope)
+    stack: str | None = None  # robot: "nd" = robot_world + nd_driver behind sut_adapter instead of sim workers
+
+    def __post_init__(self):
+        if self.stack is not None:
+            if self.stack not in STACKS:
+                raise ValueError(f"stack: unknown {self.stack!r} (allowed: {'|'.join(STACKS)})")
+            if self.problem != "robot":
+                raise ValueError(f"stack: a navigation stack runs robot scenarios, not {self.problem}")
+            if self.workers != 1 or self.remote_workers:
+                raise ValueError("stack: one world and one stack per campaign (--workers 1, no remote workers)")
 
 
 def ros_params(**params: Any) -> list[str]:
@@ -142,8 +162,11 @@ class Campaign:
         self.out.mkdir(parents=True, exist_ok=True)
         self.suite.unlink(missing_ok=True)  # written by this run's generator, not left from another
         start = time.monotonic()
-        self._start("recorder", "ambiegen_ros.nodes.recorder", ros_params(output=str(self.mcap.resolve())))
-        for k in range(spec.workers):
+        self._start("recorder", "ambiegen_ros.nodes.recorder", ros_params(
+            output=str(self.mcap.resolve()), extra_topics=",".join(STACK_TOPICS) if spec.stack else None))
+        if spec.stack:
+            self._start_stack()
+        for k in range(0 if spec.stack else spec.workers):
             name = f"{spec.problem}_sim_{k}"
             self._start(
                 name,
@@ -203,6 +226,16 @@ class Campaign:
         (self.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
         return summary
 
+    def _start_stack(self) -> None:
+        """robot_world + nd_driver + sut_adapter: the full model's loop, step for step, over ROS topics."""
+        spec = self.spec
+        self._start("robot_world", "sim_nodes.robot_world", ros_params(
+            lockstep=True, time_scale=0.0, scan_rate=10.0, seed=spec.seed, cmd_vel_stamped=True, **{"sim.dt": 0.1}))
+        self._start("nd_driver", "sim_nodes.nd_driver", ros_params(cmd_vel_stamped=True))
+        self._start("sut_adapter", "sim_nodes.sut_adapter", ros_params(
+            problem="robot", worker_id=f"sut_{self.run_id[-6:]}", profile=spec.profile, config_file=spec.config,
+            stall_topic="/nd_driver/stall", min_result_subscribers=2, settle_time=0.1))
+
     def _stop_all(self) -> None:
         """Generator first (it may still be writing timeouts), then workers, recorder last."""
         time.sleep(0.3)  # let the last results reach the recorder
@@ -219,6 +252,7 @@ class Campaign:
             "profile": spec.profile,
             "seed": spec.seed,
             "workers": spec.workers,
+            "stack": spec.stack,
             "domain_id": self.env.get("ROS_DOMAIN_ID", "0"),
             "discovery_range": self.env[DISCOVERY_RANGE_VAR],
             "elapsed_s": round(elapsed, 2),

@@ -24,6 +24,8 @@ SCRIPTS: dict[str, str] = {
     "thermostat_sim": "sim_nodes.thermostat_sim",
     "sut_adapter": "sim_nodes.sut_adapter",
     "external_sim": "sim_nodes.external_sim",
+    "robot_world": "sim_nodes.robot_world",
+    "nd_driver": "sim_nodes.nd_driver",
 }
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 import secrets
 import uuid
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -60,6 +60,8 @@ class NodeSpec:
     name: str
     executable: str
     parameters: dict[str, Any]
+    package: str = "ambiegen_ros"
+    params_files: list[str] = field(default_factory=list)  # ROS parameter files, before ``parameters``
 
 
 @dataclass
@@ -127,6 +129,85 @@ def plan_campaign(values: dict[str, str], share_dir: str, seed: int | None = Non
     }))
     return CampaignPlan(run_id, problem, value["algorithm"], seed, value["mode"], workers, mcap,
                         launch_flag("keep_workers", value["keep_workers"]), nodes)
+
+
+# --- Nav2 as the system under test (launch/nav2_campaign.launch.py) --------------------------------
+NAV2_LAUNCH_ARGUMENTS: dict[str, tuple[str, str]] = {
+    **{k: v for k, v in LAUNCH_ARGUMENTS.items() if k not in ("problem", "workers", "keep_workers")},
+    "params_file": ("", "Nav2 parameters ('' = the package's config/nav2/pioneer_navfn_dwb.yaml)"),
+    "time_scale": ("1.0", "simulated seconds per wall second; Nav2's rates in the params file are multiplied by it"),
+    "map_upsample": ("10", "each 1 m map cell goes to Nav2 as k x k cells (10 = 0.1 m)"),
+    "result_timeout": ("0.0", "seconds the generator waits for a scenario (0 = 2 x 300 s / time_scale + 60)"),
+}
+NAV2_NODES = (  # (node name, package, executable): the minimum Nav2 for navigate_to_pose with NavFn + DWB
+    ("controller_server", "nav2_controller", "controller_server"),
+    ("planner_server", "nav2_planner", "planner_server"),
+    ("behavior_server", "nav2_behaviors", "behavior_server"),
+    ("bt_navigator", "nav2_bt_navigator", "bt_navigator"),
+    ("lifecycle_manager_navigation", "nav2_lifecycle_manager", "lifecycle_manager"),
+)
+NAV2_TOPICS = ("/map", "/initialpose", "/scan", "/odom", "/tf", "/tf_static", "/cmd_vel", "/plan", "/collision")
+"""What a Nav2 campaign records besides the AmbieGen topics: a robot bag (types and QoS: the publishers')."""
+NAV2_RATES = {  # parameter name -> "rate" (multiplied by k) | "period" (divided by k)
+    "controller_frequency": "rate", "expected_planner_frequency": "rate", "update_frequency": "rate",
+    "publish_frequency": "rate", "cycle_frequency": "rate", "bt_loop_duration": "period",
+}
+
+
+def scale_nav2_rates(params: Any, k: float) -> Any:
+    """A Nav2 parameter tree with every loop rate multiplied by ``k`` (and loop periods divided):
+    Jazzy's controller, planner, costmap and behaviour-tree loops run on wall-clock rates, so a
+    world ``k`` times faster than real time needs them ``k`` times faster too. Timeouts stay:
+    they count in sim time (``use_sim_time``)."""
+    if isinstance(params, dict):
+        out = {}
+        for key, value in params.items():
+            kind = NAV2_RATES.get(key)
+            if kind and isinstance(value, (int, float)) and not isinstance(value, bool):
+                value = value * k if kind == "rate" else max(1, int(round(value / k)))
+            out[key] = scale_nav2_rates(value, k)
+        return out
+    return params
+
+
+def plan_nav2_campaign(values: dict[str, str], share_dir: str, seed: int | None = None) -> CampaignPlan:
+    """``nav2_campaign.launch.py``'s node set: recorder, ``robot_world`` (free-running at
+    ``time_scale``, publishing ``/clock``), Nav2 with the user's params file (rates scaled, see
+    ``scale_nav2_rates``; written next to the log), ``sut_adapter`` (``goal_mode:=action``,
+    collisions from the world) as the campaign's one worker, and the generator."""
+    import yaml
+
+    value = {name: values.get(name, default) for name, (default, _) in NAV2_LAUNCH_ARGUMENTS.items()}
+    base = plan_campaign({**{k: v for k, v in value.items() if k in LAUNCH_ARGUMENTS}, "problem": "robot",
+                          "workers": "0"}, share_dir, seed)
+    k = _number("time_scale", value["time_scale"], float, 0.0)
+    if not k > 0:
+        raise ValueError("time_scale: must be > 0")
+    upsample = _number("map_upsample", value["map_upsample"], int, 1)
+    source = value["params_file"] or os.path.join(share_dir, "config", "nav2", "pioneer_navfn_dwb.yaml")
+    try:
+        params = yaml.safe_load(Path(source).read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise ValueError(f"params_file: cannot read {source}: {exc}") from None
+    scaled = base.mcap.with_name(base.mcap.stem + ".nav2_params.yaml")
+    scaled.parent.mkdir(parents=True, exist_ok=True)
+    scaled.write_text(f"# {source} with Nav2's loop rates x {k:g} (time_scale)\n"
+                      + yaml.safe_dump(scale_nav2_rates(params, k), sort_keys=False))
+    result_timeout = _number("result_timeout", value["result_timeout"], float, 0.0) or 2 * 300.0 / k + 60.0
+    recorder, generator = base.node("recorder"), base.node("generator")
+    recorder.parameters["extra_topics"] = ",".join(NAV2_TOPICS)
+    generator.parameters.update(min_subscribers=2, min_workers=1, max_in_flight=1, result_timeout=result_timeout)
+    world = NodeSpec("robot_world", "robot_world", {"time_scale": k, "seed": base.seed, "collision_topic": "/collision"})
+    nav2 = [NodeSpec(name, executable, {"use_sim_time": True}, package=package, params_files=[str(scaled)])
+            for name, package, executable in NAV2_NODES]
+    adapter = NodeSpec("sut_adapter", "sut_adapter", {
+        "problem": "robot", "worker_id": f"nav2_{base.run_id[-6:]}", "goal_mode": "action", "time_scale": k,
+        "collision_topic": "/collision", "map_upsample": upsample, "settle_time": 1.0, "start_timeout": 120.0,
+        "config_file": generator.parameters["config_file"], "profile": value["profile"],
+        "min_result_subscribers": 2})
+    base.nodes = [recorder, world, *nav2, adapter, generator]
+    base.workers = 1
+    return base
 
 
 # --- the end of a run ------------------------------------------------------------------------------

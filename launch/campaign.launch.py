@@ -28,13 +28,24 @@ from launch_ros.actions import Node
 from ambiegen_ros.launch_logic import LAUNCH_ARGUMENTS, plan_campaign, plan_summary, summary_table
 
 
-def _campaign(context):
-    values = {name: LaunchConfiguration(name).perform(context) for name in LAUNCH_ARGUMENTS}
-    plan = plan_campaign(values, get_package_share_directory("ambiegen_ros"))
+def campaign_launch(arguments, plan_fn):
+    """The launch description of a campaign planned by ``plan_fn(values, share_dir)`` from
+    ``arguments`` (name -> (default, help)); ``nav2_campaign.launch.py`` reuses it."""
+
+    def campaign(context):
+        values = {name: LaunchConfiguration(name).perform(context) for name in arguments}
+        return _actions(plan_fn(values, get_package_share_directory("ambiegen_ros")))
+
+    args = [DeclareLaunchArgument(name, default_value=default, description=text)
+            for name, (default, text) in arguments.items()]
+    return LaunchDescription(args + [OpaqueFunction(function=campaign)])
+
+
+def _actions(plan):
     started = time.monotonic()
     exit_codes = {}
-    nodes = {spec.name: Node(package="ambiegen_ros", executable=spec.executable, name=spec.name, output="screen",
-                             parameters=[spec.parameters]) for spec in plan.nodes}
+    nodes = {spec.name: Node(package=spec.package, executable=spec.executable, name=spec.name, output="screen",
+                             parameters=[*spec.params_files, spec.parameters]) for spec in plan.nodes}
     recorder, generator = nodes["recorder"], nodes["generator"]
 
     def on_generator_exit(event, _context):
@@ -60,6 +71,4 @@ def _campaign(context):
 
 
 def generate_launch_description():
-    args = [DeclareLaunchArgument(name, default_value=default, description=text)
-            for name, (default, text) in LAUNCH_ARGUMENTS.items()]
-    return LaunchDescription(args + [OpaqueFunction(function=_campaign)])
+    return campaign_launch(LAUNCH_ARGUMENTS, plan_campaign)

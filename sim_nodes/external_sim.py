@@ -29,7 +29,6 @@ of ``RobotSimConfig`` / ``CarSimConfig`` / ``RoomSimConfig``).
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 import sys
 from typing import Any
@@ -44,7 +43,7 @@ from ambiegen_ros.sims import car, robot
 from ambiegen_ros.sims.full_model import SIMULATORS
 from ambiegen_ros.sims.room import SteppedRoom
 from ambiegen_ros.nodes import run_node
-from sim_nodes.worker import load_problem
+from sim_nodes.worker import load_problem, sim_options
 
 PROBLEMS = ("robot", "vehicle", "thermostat")
 
@@ -92,15 +91,7 @@ class ExternalSim:
         self.frame_id = p("frame_id", "map", "frame of published poses")
         self.child_frame_id = p("child_frame_id", "base_link", "odometry child frame")
         tick = p("tick_period", 0.002, "seconds between publishing turns")
-        cfg_cls = SIMULATORS[self.problem_name][0]
-        options = {}
-        for f in dataclasses.fields(cfg_cls):
-            if f.name == "run_invalid":
-                continue
-            value = p(f"sim.{f.name}", f.default, f"simulator option {f.name}")
-            if value != f.default:
-                options[f.name] = value
-        self.cfg = cfg_cls(**options)
+        self.cfg = sim_options(n, SIMULATORS[self.problem_name][0])
         self.stream: _Stream | None = None
         self.runs = 0
         make = n.new_message
@@ -257,17 +248,9 @@ class ExternalSim:
         make = self._make
         for i in s.due(now, self.time_scale):
             stamp = s.start_ns + int(round(float(s.cols["t"][i]) * 1e9))
-            msg = make(
-                "nav_msgs/msg/Odometry",
-                header=conversions.header(make, stamp, self.frame_id),
-                child_frame_id=self.child_frame_id,
-                pose=make("geometry_msgs/msg/PoseWithCovariance",
-                          pose=conversions.pose(make, s.cols["x"][i], s.cols["y"][i], float(s.cols["yaw"][i]))),
-                twist=make("geometry_msgs/msg/TwistWithCovariance",
-                           twist=make("geometry_msgs/msg/Twist",
-                                      linear=make("geometry_msgs/msg/Vector3", x=float(s.cols["v"][i]), y=0.0, z=0.0))),
-            )
-            self.pub.publish(msg)
+            self.pub.publish(conversions.odometry(make, stamp, s.cols["x"][i], s.cols["y"][i], float(s.cols["yaw"][i]),
+                                                  s.cols["v"][i], frame_id=self.frame_id,
+                                                  child_frame_id=self.child_frame_id))
         if s.done:
             self.stream = None
 

@@ -5,12 +5,21 @@ To the generator it is one more sim worker (heartbeats on ``/ambiegen/workers``,
 ``/ambiegen/results``). To the system under test it is a user with standard topics:
 
 * ``robot``: the map on ``map_topic`` (``nav_msgs/OccupancyGrid``, reliable + transient local),
-  the start on ``initialpose_topic`` (``geometry_msgs/PoseWithCovarianceStamped``), then, after
-  ``settle_time``, the goal on ``goal_topic`` (``geometry_msgs/PoseStamped``) or, with
-  ``goal_mode:=action`` on the rclpy backend, as a Nav2 ``navigate_to_pose`` action goal. It
-  watches ``odom_topic`` (``nav_msgs/Odometry``, poses in the map frame, or relative to the start
-  pose with ``odom_frame:=start``) and, if ``collision_topic`` is set, a ``std_msgs/Bool`` that
-  reports a collision when true.
+  the start on ``initialpose_topic`` (``geometry_msgs/PoseWithCovarianceStamped``; facing along
+  the route, as the full model starts, unless ``start_heading:=scenario``), then the goal on
+  ``goal_topic`` (``geometry_msgs/PoseStamped``) once ``settle_time`` has passed and the system
+  shows the robot at the start (within ``start_tolerance`` m and ``start_yaw_tolerance`` rad;
+  samples from before that, a world still showing the last run, are ignored). It watches
+  ``odom_topic`` (``nav_msgs/Odometry``, poses in the map frame, or relative to the start pose
+  with ``odom_frame:=start``), and optionally ``collision_topic`` (``std_msgs/Bool``, true = a
+  collision) and ``stall_topic`` (``std_msgs/String``: the stack gave up, and why: a ``stall``).
+  With ``goal_mode:=action`` (rclpy only) the goal is Nav2's ``navigate_to_pose`` action
+  (``sim_nodes.nav2_client``): a scenario starts once the action server is up and every node of
+  ``nav2_lifecycle_nodes`` is active; each new map clears both costmaps
+  (``nav2_clear_costmaps``); Nav2 aborting (or rejecting) its goal before our oracle decided is a
+  ``nav2_aborted`` failure; Nav2's own result is recorded beside the verdict (``nav2_status``,
+  ``nav2_error_code``, ``nav2_error_msg``), and a goal still running when the oracle decides is
+  cancelled.
 * ``vehicle``: the road on ``road_topic`` (``nav_msgs/Path``, latched); watches ``odom_topic``
   (pose = centre of the car's bounding box).
 * ``thermostat``: set points on ``setpoint_topic`` (``std_msgs/Float64``), each when its
@@ -68,11 +77,7 @@ ORACLE_FIELDS = {
 STAMP_CLOCKS = ("sim", "wall", "receive")
 ODOM_FRAMES = ("map", "start")
 GOAL_MODES = ("topic", "action")
-
-
-def yaw_of(q: Any) -> float:
-    """Heading from a quaternion (any roll/pitch ignored)."""
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+START_HEADINGS = ("route", "scenario")
 
 
 def to_map_frame(x: np.ndarray, y: np.ndarray, yaw: np.ndarray, start: tuple[float, float, float]):
@@ -136,12 +141,29 @@ class SutAdapter:
         self.reference = bool(p("reference", True, "a failure counts only when the problem's reference passes the "
                                                    "scenario (false: the old, unchecked verdicts)"))
         self.goal_mode = p("goal_mode", "topic", "topic | action (Nav2 navigate_to_pose, rclpy only)")
+        self.start_heading = p("start_heading", "route", "robot: initial pose facing along its route (as the full "
+                                                          "model starts) | as the scenario message says")
         self.action_name = p("action_name", "navigate_to_pose", "Nav2 action for goal_mode action")
+        nav2_nodes = p("nav2_lifecycle_nodes", "planner_server,controller_server,bt_navigator",
+                       "goal_mode action: Nav2 nodes that must be active before a scenario starts")
+        nav2_clear = p("nav2_clear_costmaps", "/global_costmap/clear_entirely_global_costmap,"
+                                              "/local_costmap/clear_entirely_local_costmap",
+                       "goal_mode action: costmap clearing services called with every new map ('' = none)")
+        self.start_tolerance = float(p("start_tolerance", 0.5, "robot: a run starts with the first pose sample this "
+                                                                "close to the start pose [m]; earlier ones (a world "
+                                                                "still showing the last run) are ignored"))
+        self.start_yaw_tolerance = float(p("start_yaw_tolerance", 0.1, "robot: ... and heading this close to the start "
+                                                                       "pose's [rad] (< 0: any heading)"))
+        self.map_upsample = int(p("map_upsample", 1, "robot: publish each map cell as k x k cells (the same walls at "
+                                                      "the resolution a stack's costmaps expect; Nav2: 10 = 0.1 m)"))
+        if self.map_upsample < 1:
+            raise ConfigError("map_upsample: must be >= 1")
         self.tick_period = float(p("tick_period", 0.002, "seconds between adapter turns while a scenario runs"))
         odom_reliable = p("odom_reliable", True, "subscribe to samples reliably (false: best effort)")
         for name, allowed, value in (("stamp_clock", STAMP_CLOCKS, self.stamp_clock),
                                      ("odom_frame", ODOM_FRAMES, self.odom_frame),
-                                     ("goal_mode", GOAL_MODES, self.goal_mode)):
+                                     ("goal_mode", GOAL_MODES, self.goal_mode),
+                                     ("start_heading", START_HEADINGS, self.start_heading)):
             if value not in allowed:
                 raise ConfigError(f"{name}: unknown {value!r} (allowed: {'|'.join(allowed)})")
         if not self.time_scale > 0:
@@ -170,6 +192,7 @@ class SutAdapter:
                 "map": p("map_topic", "/map"), "initialpose": p("initialpose_topic", "/initialpose"),
                 "goal": p("goal_topic", "/goal_pose"), "odom": p("odom_topic", "/odom"),
                 "collision": p("collision_topic", "", "optional std_msgs/Bool, true = collision ('' = none)"),
+                "stall": p("stall_topic", "", "optional std_msgs/String: the stack gave up, and why ('' = none)"),
             }
             self.pub_map = n.create_publisher("nav_msgs/msg/OccupancyGrid", self.topics["map"], LATCHED)
             self.pub_initialpose = n.create_publisher("geometry_msgs/msg/PoseWithCovarianceStamped",
@@ -178,6 +201,8 @@ class SutAdapter:
             n.create_subscription("nav_msgs/msg/Odometry", self.topics["odom"], self.on_odom, sample_qos)
             if self.topics["collision"]:
                 n.create_subscription("std_msgs/msg/Bool", self.topics["collision"], self.on_collision, DEFAULT)
+            if self.topics["stall"]:
+                n.create_subscription("std_msgs/msg/String", self.topics["stall"], self.on_stall, DEFAULT)
         elif self.problem_name == "vehicle":
             self.topics = {"road": p("road_topic", "/road"), "odom": p("odom_topic", "/odom")}
             self.pub_road = n.create_publisher("nav_msgs/msg/Path", self.topics["road"], LATCHED)
@@ -201,8 +226,14 @@ class SutAdapter:
         self.job: Job | None = None
         self.samples: list[tuple] = []
         self.collision = False
+        self.stalled: str | None = None
+        self.pre_goal: tuple | None = None  # the last sample before the goal went out
         self._fast = None
-        self._action = None
+        self.nav2 = None
+        if self.goal_mode == "action":  # pragma: no cover - needs rclpy and nav2_msgs
+            from sim_nodes.nav2_client import Nav2Client
+
+            self.nav2 = Nav2Client(n._node, self.action_name, nav2_nodes.split(","), nav2_clear.split(","), n.logger)
         self.endpoint = WorkerEndpoint(n, self.problem, self.accept,
                                        lambda: len(self.queue) + (self.job is not None), default_id)
         self.worker_id = self.endpoint.worker_id
@@ -242,7 +273,7 @@ class SutAdapter:
         """Take the next scenario: first wait until the system under test is on the graph."""
         self.job = job
         self.samples.clear()
-        self.collision = False
+        self.collision, self.stalled, self.pre_goal = False, None, None
         job.started = time.monotonic()
         job.phase = "connecting"
         self._next_graph_check = 0.0
@@ -260,6 +291,8 @@ class SutAdapter:
         missing = [f"nobody subscribes to {pub.topic}" for pub in pubs if pub.subscription_count() < 1]
         if not self.node.publishers_info(out_topic):
             missing.append(f"nobody publishes {out_topic}")
+        if self.nav2 is not None:
+            missing += self.nav2.missing()
         return missing
 
     def setup(self, job: Job, now: float) -> None:
@@ -277,10 +310,22 @@ class SutAdapter:
                                        diagonal=self.problem.config.diagonal)
                 job.limit_sim = self.oracle.timeout  # the floor; the route's own limit once the start is seen
                 s = msg.start.pose
-                job.start_pose = (float(s.position.x), float(s.position.y), yaw_of(s.orientation))
-                self.pub_map.publish(make("nav_msgs/msg/OccupancyGrid", header=head, info=info, data=msg.map.data))
+                job.start_pose = (float(s.position.x), float(s.position.y), conversions.yaw_of(s.orientation))
+                if self.start_heading == "route":  # facing the route's first leg, as the full model starts
+                    route = job.judge.start(job.start_pose[0], job.start_pose[1])
+                    if len(route) > 1:
+                        heading = math.atan2(route[1, 1] - route[0, 1], route[1, 0] - route[0, 0])
+                        job.start_pose = (job.start_pose[0], job.start_pose[1], heading)
+                        s = conversions.pose(make, *job.start_pose)
+                if self.map_upsample > 1:
+                    self.pub_map.publish(conversions.upsampled_grid(make, msg.map, self.map_upsample, stamp,
+                                                                    self.frame_id))
+                else:
+                    self.pub_map.publish(make("nav_msgs/msg/OccupancyGrid", header=head, info=info, data=msg.map.data))
                 self.pub_initialpose.publish(make("geometry_msgs/msg/PoseWithCovarianceStamped", header=head,
                                                   pose=make("geometry_msgs/msg/PoseWithCovariance", pose=s)))
+                if self.nav2 is not None:  # the last scenario's walls out of both costmaps
+                    self.nav2.clear_costmaps()
                 job.phase, job.settle_until = "settle", now + self.settle_time
             elif self.problem_name == "vehicle":
                 road = conversions.path_points(msg.road)
@@ -315,45 +360,26 @@ class SutAdapter:
         make = self.node.new_message
         goal = make("geometry_msgs/msg/PoseStamped", header=conversions.header(make, self.node.now_ns(), self.frame_id),
                     pose=job.msg.goal.pose)
-        if self.goal_mode == "action":
-            self._send_action_goal(goal)
+        if self.nav2 is not None:
+            self.nav2.send(goal)
         else:
             self.pub_goal.publish(goal)
-
-    def _send_action_goal(self, goal: Any) -> None:  # pragma: no cover - needs rclpy and nav2_msgs
-        """Nav2's NavigateToPose; the verdict still comes from odometry, the action result is logged."""
-        from nav2_msgs.action import NavigateToPose
-        from rclpy.action import ActionClient
-
-        if self._action is None:
-            self._action = ActionClient(self.node._node, NavigateToPose, self.action_name)
-        if not self._action.server_is_ready():
-            self.node.logger.warning(f"action server {self.action_name} not ready; sending anyway")
-        request = NavigateToPose.Goal()
-        request.pose = goal
-        logger = self.node.logger
-
-        def on_response(future):
-            handle = future.result()
-            if handle is None or not handle.accepted:
-                logger.warning("navigate_to_pose goal rejected")
-                return
-            handle.get_result_async().add_done_callback(
-                lambda f: logger.info(f"navigate_to_pose finished with status {f.result().status}"))
-
-        self._action.send_goal_async(request).add_done_callback(on_response)
 
     # --- samples --------------------------------------------------------------------------------
     def on_odom(self, msg: Any) -> None:
         job = self.job
-        if job is None or job.phase not in ("waiting", "running"):
+        if job is None or job.phase not in ("settle", "waiting", "running"):
             return
         pose = msg.pose.pose
         o = pose.orientation
         conversions.require_finite((pose.position.x, pose.position.y, o.x, o.y, o.z, o.w, msg.twist.twist.linear.x),
                                    "odometry pose / twist")  # raises: the sample is dropped and counted
-        self.samples.append((conversions.stamp_ns(msg.header), time.monotonic_ns(), float(pose.position.x),
-                             float(pose.position.y), yaw_of(pose.orientation), float(msg.twist.twist.linear.x)))
+        sample = (conversions.stamp_ns(msg.header), time.monotonic_ns(), float(pose.position.x),
+                  float(pose.position.y), conversions.yaw_of(pose.orientation), float(msg.twist.twist.linear.x))
+        if job.phase == "settle":
+            self.pre_goal = sample
+        elif job.first is not None or self.samples or self._at_start(sample, job):
+            self.samples.append(sample)
 
     def on_temperature(self, msg: Any) -> None:
         job = self.job
@@ -361,6 +387,10 @@ class SutAdapter:
             return
         temperature = float(conversions.require_finite(msg.temperature, "temperature"))
         self.samples.append((conversions.stamp_ns(msg.header), time.monotonic_ns(), temperature))
+
+    def on_stall(self, msg: Any) -> None:
+        if self.job is not None and self.job.phase == "running" and self.stalled is None:
+            self.stalled = conversions.clip_text(msg.data) or "no reason given"
 
     def on_collision(self, msg: Any) -> None:
         if self.job is not None and self.job.phase == "running" and bool(msg.data):
@@ -384,9 +414,14 @@ class SutAdapter:
                                              kind="error"))
             return
         if job.phase == "settle":
-            if now >= job.settle_until:
+            # the goal goes out once the system shows the robot at the start (a quiet one: after
+            # settle_time; one still showing the last run: after start_timeout at most)
+            ready = self.pre_goal is None or self._at_start(self.pre_goal, job)
+            if now >= job.settle_until and (ready or now >= job.settle_until + self.start_timeout):
                 self._send_goal(job)
                 job.phase, job.go = "waiting", now
+                if self._at_start(self.pre_goal, job):  # the robot as the goal went out is sample 0
+                    self.samples.insert(0, self.pre_goal)
             return
         if self.samples:
             self._judge_samples(job, now)
@@ -398,6 +433,17 @@ class SutAdapter:
                and now >= job.anchor + job.schedule[job.next_element][0] / self.time_scale):
             self._publish_element(job.schedule[job.next_element])
             job.next_element += 1
+        if self.nav2 is not None and self.nav2.result is not None and self.nav2.result["status"] != "succeeded":
+            r = self.nav2.result
+            job.judge.fail("nav2_aborted", f"Nav2 {r['status']} its goal after {job.judge.elapsed:.1f} s (error "
+                                           f"{r['error_code']}{': ' + r['error_msg'] if r['error_msg'] else ''})")
+            self.finish(job.judge.outcome())
+            return
+        if self.stalled is not None:
+            job.judge.fail("stall", f"the system under test gave up ({self.stalled}) on {self.topics['stall']} "
+                                    f"after {job.judge.elapsed:.1f} s")
+            self.finish(job.judge.outcome())
+            return
         if self.collision:
             job.judge.fail("collision", f"collision reported on {self.topics['collision']} "
                                         f"after {job.judge.elapsed:.1f} s")
@@ -412,6 +458,19 @@ class SutAdapter:
                              f"{now - job.go:.1f} s wall (time_scale {self.time_scale:g})")
         if job.judge.decided:
             self.finish(job.judge.outcome())
+
+    def _at_start(self, sample: tuple | None, job: Job) -> bool:
+        """Is this pose sample the robot at the scenario's start (within ``start_tolerance``)?
+        Every sample of a road or a room is."""
+        if sample is None:
+            return False
+        if self.problem_name != "robot":
+            return True
+        x, y, yaw = sample[2], sample[3], sample[4]
+        if self.odom_frame == "map":
+            x, y, yaw = x - job.start_pose[0], y - job.start_pose[1], yaw - job.start_pose[2]
+        turned = abs((yaw + math.pi) % (2 * math.pi) - math.pi)
+        return math.hypot(x, y) <= self.start_tolerance and not turned > self.start_yaw_tolerance >= 0
 
     def _judge_samples(self, job: Job, now: float) -> None:
         rows = np.array(self.samples, dtype=object)
@@ -453,6 +512,12 @@ class SutAdapter:
         if self._fast is not None:
             self._fast.cancel()
             self._fast = None
+        if self.nav2 is not None:  # Nav2's own word beside our oracle's
+            r = self.nav2.result or {"status": "running (cancelled: the oracle decided first)" if self.nav2.handle
+                                     else "no goal", "error_code": 0, "error_msg": ""}
+            outcome.metrics = {**outcome.metrics, "nav2_status": r["status"], "nav2_error_code": r["error_code"],
+                               "nav2_error_msg": r["error_msg"]}
+            self.nav2.cancel()
         if self.reference and outcome.failed:  # does the in-process reference pass the same scenario?
             outcome = reference.certify(outcome, reference.after(self.problem, job.scenario, self.oracle, outcome))
         wall = time.monotonic() - job.started

@@ -83,6 +83,22 @@ def load_problem(node: Any, problem_name: str) -> Any:
         raise ConfigError(f"config: problem_config: {exc}")
 
 
+def sim_options(node: Any, config_cls: type, fields: Any = None, defaults: dict[str, Any] | None = None) -> Any:
+    """A simulator config from ``sim.<field>`` parameters (every field of the dataclass
+    ``config_cls``, or only ``fields``; ``defaults`` overrides the dataclass's own defaults)."""
+    import dataclasses
+
+    options = dict(defaults or {})
+    for f in dataclasses.fields(config_cls):
+        if f.name == "run_invalid" or (fields is not None and f.name not in fields):
+            continue
+        default = options.get(f.name, f.default)
+        value = node.declare_parameter(f"sim.{f.name}", default, f"simulator option {f.name}")
+        if value != f.default or f.name in options:
+            options[f.name] = value
+    return config_cls(**options)
+
+
 def node_name_for(worker_id: str) -> str:
     """A valid ROS node name for a worker id: letters, digits and '_', not starting with a digit."""
     name = re.sub(r"[^A-Za-z0-9_]", "_", worker_id)

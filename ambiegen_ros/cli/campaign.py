@@ -33,6 +33,10 @@ def register(sub) -> None:
     p.add_argument("--offspring", type=int)
     p.add_argument("--seed", type=int, help="random seed (default: drawn and recorded)")
     p.add_argument("--workers", type=int, default=1, help="sim workers sharing the scenarios (default 1)")
+    p.add_argument("--stack", choices=library.STACKS,
+                   help="robot: run a ROS navigation stack as the system under test instead of sim workers: "
+                        "'nd' = robot_world + nd_driver (our Nearness Diagram robot on Nav2's topics) behind "
+                        "sut_adapter; the log also holds /scan, /odom, /tf, /cmd_vel, /plan")
     p.add_argument("--mode", default="surrogate", choices=("surrogate", "in_the_loop"),
                    help="surrogate: search with the surrogate, then execute the suite; in_the_loop: every F1 from the sims")
     p.add_argument("--sim-model", default="full", choices=("full", "surrogate"),
@@ -110,6 +114,9 @@ def cmd_campaign(args) -> int:
     if args.domain_id is not None and args.domain_id > 101:
         print(f"warning: --domain-id {args.domain_id} > 101 maps to UDP ports in Linux's ephemeral range; "
               "participants may fail to bind", file=sys.stderr)
+    if args.stack and (args.problem != "robot" or args.workers != 1 or args.remote_workers):
+        raise BadInput(f"--stack {args.stack}: runs robot scenarios on one world and one stack "
+                       "(--problem robot, --workers 1, no --remote-workers)")
     spec = CampaignSpec(
         problem=args.problem,
         algorithm=args.algorithm,
@@ -131,6 +138,7 @@ def cmd_campaign(args) -> int:
         overwrite=args.overwrite,
         remote_workers=args.remote_workers,
         discovery_range=args.discovery_range,
+        stack=args.stack,
     )
     campaign = Campaign(spec)
     tty = sys.stderr.isatty()

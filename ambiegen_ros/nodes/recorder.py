@@ -9,9 +9,14 @@ stored as MCAP metadata when the latched ``RunConfig`` arrives. The log is flush
 Parameters: ``output`` (file path; default ``ambiegen_<random>_<utc time>.mcap``; the launch file
 and ``ambiegen campaign`` name it ``<run id>_<utc time>.mcap``), ``overwrite`` (false: an existing
 ``output`` is refused with exit status 2, as rosbag2 does; true: it is replaced), ``flush_period``
-(s), ``compression`` (zstd | lz4 | none), ``extra_topics`` (``topic=pkg/msg/Type`` entries to
-record besides the AmbieGen topics), ``discover`` (also record other topics found under
-``/ambiegen``).
+(s), ``compression`` (zstd | lz4 | none), ``extra_topics`` (comma-separated ``topic`` or
+``topic=pkg/msg/Type`` entries to record besides the AmbieGen topics: a robot's ``/scan``,
+``/odom``, ``/tf`` ...), ``discover`` (also record other topics found under ``/ambiegen``).
+
+An extra topic is subscribed once a publisher of it shows up, with that publisher's type and
+reliability and durability (as ``ros2 bag record`` adapts to the offered QoS): a best-effort
+laser is read best-effort, ``/tf_static`` and a map transient-local, so late samples and latched
+ones are both kept. Until then it is looked for every second.
 """
 from __future__ import annotations
 
@@ -36,6 +41,15 @@ READER_DEPTH = 5000
 # and 2000 (Cyclone: all 300 at 5000). So on Fast DDS the recorder's readers are 2000 deep.
 FAST_DDS_READER_DEPTH = 2000
 TIMELINE_TOPICS = frozenset(topics.timeline(p) for p in topics.TIMELINE_TYPES)
+
+
+def offered_qos(offered: list) -> Qos:
+    """The QoS that matches every publisher (``ros2 bag record``'s rule): reliable only if all of
+    them are, transient local only if all of them are; the first one's depth."""
+    if not offered:
+        return DEFAULT
+    return Qos(reliable=all(o.qos.reliable for o in offered),
+               transient_local=all(o.qos.transient_local for o in offered), depth=offered[0].qos.depth)
 
 
 class Recorder:
@@ -65,12 +79,13 @@ class Recorder:
         self._config_seen = False
         for topic, typename, qos in topics.run_topics():
             self.record(topic, typename, qos)
+        self.pending: dict[str, str] = {}  # extra topics not subscribed yet -> type ('' = the publisher's)
         for entry in extra.split(","):
             if entry.strip():
                 topic, _, typename = entry.partition("=")
-                self.record(topic.strip(), typename.strip(), DEFAULT)
+                self.pending[topic.strip()] = typename.strip()
         n.create_timer(flush_period, self.flush)
-        if self.discover:
+        if self.discover or self.pending:
             n.create_timer(1.0, self.discover_topics)
         n.logger.info(f"recording to {self.path}")
 
@@ -112,10 +127,16 @@ class Recorder:
 
     def discover_topics(self) -> None:
         for topic, types in self.node.topic_names_and_types():
-            if topic.startswith(topics.NAMESPACE + "/") and self.log.channel_id(topic) is None and types:
-                offered = self.node.publishers_info(topic)
-                qos = offered[0].qos if offered else DEFAULT
-                self.record(topic, types[0], qos)
+            if not types or self.log.channel_id(topic) is not None:
+                continue
+            wanted = topic in self.pending
+            if not (wanted or (self.discover and topic.startswith(topics.NAMESPACE + "/"))):
+                continue
+            offered = self.node.publishers_info(topic)
+            if wanted and not offered:
+                continue  # only subscribers so far: wait for a publisher and its QoS
+            typename = self.pending.pop(topic, "") or types[0]
+            self.record(topic, typename, offered_qos(offered))
 
     def flush(self) -> None:
         self.log.flush()

@@ -60,6 +60,11 @@ def pose(make: Make, x: float, y: float, yaw: float = 0.0) -> Any:
     )
 
 
+def yaw_of(q: Any) -> float:
+    """Heading from a quaternion (any roll/pitch ignored)."""
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
 def pose_stamped(make: Make, now_ns: int, x: float, y: float, yaw: float = 0.0) -> Any:
     return make("geometry_msgs/msg/PoseStamped", header=header(make, now_ns), pose=pose(make, x, y, yaw))
 
@@ -79,6 +84,56 @@ def path(make: Make, now_ns: int, points: np.ndarray | None) -> Any:
 
 def path_points(msg_path: Any) -> np.ndarray:
     return np.array([[p.pose.position.x, p.pose.position.y] for p in msg_path.poses], dtype=float).reshape(-1, 2)
+
+
+# --- a robot's world: odometry, transforms, laser, velocity commands ------------------------------
+def odometry(make: Make, now_ns: int, x: float, y: float, yaw: float, v: float = 0.0, w: float = 0.0,
+             frame_id: str = "map", child_frame_id: str = "base_link") -> Any:
+    """``nav_msgs/Odometry``: the pose in ``frame_id``, the twist (forward, turn) in the body frame."""
+    twist = make("geometry_msgs/msg/Twist", linear=make("geometry_msgs/msg/Vector3", x=float(v), y=0.0, z=0.0),
+                 angular=make("geometry_msgs/msg/Vector3", x=0.0, y=0.0, z=float(w)))
+    return make("nav_msgs/msg/Odometry", header=header(make, now_ns, frame_id), child_frame_id=child_frame_id,
+                pose=make("geometry_msgs/msg/PoseWithCovariance", pose=pose(make, x, y, yaw)),
+                twist=make("geometry_msgs/msg/TwistWithCovariance", twist=twist))
+
+
+def transform(make: Make, now_ns: int, parent: str, child: str, x: float = 0.0, y: float = 0.0,
+              yaw: float = 0.0) -> Any:
+    """``geometry_msgs/TransformStamped`` of a planar pose (for ``tf2_msgs/TFMessage``)."""
+    return make("geometry_msgs/msg/TransformStamped", header=header(make, now_ns, parent), child_frame_id=child,
+                transform=make("geometry_msgs/msg/Transform",
+                               translation=make("geometry_msgs/msg/Vector3", x=float(x), y=float(y), z=0.0),
+                               rotation=make("geometry_msgs/msg/Quaternion", x=0.0, y=0.0, z=math.sin(yaw / 2),
+                                             w=math.cos(yaw / 2))))
+
+
+def laser_scan(make: Make, now_ns: int, frame_id: str, angle_min: float, angle_max: float, ranges: np.ndarray,
+               range_max: float, scan_time: float = 0.0) -> Any:
+    """``sensor_msgs/LaserScan`` of beams spread evenly from ``angle_min`` to ``angle_max``."""
+    ranges = np.asarray(ranges, dtype=np.float32)
+    n = len(ranges)
+    return make("sensor_msgs/msg/LaserScan", header=header(make, now_ns, frame_id), angle_min=float(angle_min),
+                angle_max=float(angle_max), angle_increment=float((angle_max - angle_min) / max(n - 1, 1)),
+                time_increment=0.0, scan_time=float(scan_time), range_min=0.0, range_max=float(range_max),
+                ranges=ranges, intensities=np.zeros(0, dtype=np.float32))
+
+
+def scan_beams(msg: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A LaserScan's beam angles, ranges and which beams hit something within range (finite,
+    inside [range_min, range_max]; REP 117: inf = no return)."""
+    ranges = np.asarray(msg.ranges, dtype=float)
+    angles = np.linspace(float(msg.angle_min), float(msg.angle_max), len(ranges)) if len(ranges) > 1 \
+        else np.full(len(ranges), float(msg.angle_min))
+    with np.errstate(invalid="ignore"):
+        hits = np.isfinite(ranges) & (ranges >= float(msg.range_min)) & (ranges <= float(msg.range_max))
+    return angles, ranges, hits
+
+
+def velocity_command(msg: Any) -> tuple[float, float]:
+    """(forward m/s, turn rad/s) of a ``geometry_msgs/Twist`` or ``TwistStamped``; both finite."""
+    twist = getattr(msg, "twist", msg)
+    v, w = require_finite((twist.linear.x, twist.angular.z), "twist")
+    return float(v), float(w)
 
 
 def key_values(make: Make, values: dict[str, Any]) -> list[Any]:
@@ -177,6 +232,18 @@ def occupancy_grid(make: Make, now_ns: int, env: Any) -> Any:
     )
     data = np.where(grid, 100, 0).astype(np.int8).reshape(-1)  # row-major from cell (0, 0): index y * width + x
     return make("nav_msgs/msg/OccupancyGrid", header=header(make, now_ns), info=info, data=data)
+
+
+def upsampled_grid(make: Make, msg_grid: Any, factor: int, now_ns: int, frame_id: str = "map") -> Any:
+    """An ``OccupancyGrid`` with every cell split into ``factor`` x ``factor`` cells: the same walls,
+    the resolution a navigation stack's costmaps expect (Nav2's static layer takes the map's)."""
+    info = msg_grid.info
+    data = np.asarray(msg_grid.data, dtype=np.int8).reshape(int(info.height), int(info.width))
+    data = np.repeat(np.repeat(data, factor, axis=0), factor, axis=1)
+    fine = make("nav_msgs/msg/MapMetaData", map_load_time=stamp(make, now_ns),
+                resolution=float(info.resolution) / factor, width=int(data.shape[1]), height=int(data.shape[0]),
+                origin=info.origin)
+    return make("nav_msgs/msg/OccupancyGrid", header=header(make, now_ns, frame_id), info=fine, data=data.reshape(-1))
 
 
 def grid_from_message(msg_grid: Any, field: str = "map") -> np.ndarray:
@@ -336,21 +403,8 @@ def timeline_messages(make: Make, start_ns: int, problem: str, timeline: dict[st
                 )
             )
             continue
-        x, y, yaw = float(timeline["x"][i]), float(timeline["y"][i]), float(timeline["yaw"][i])
         v = float(timeline["v"][i]) if "v" in timeline else 0.0
-        twist = make(
-            "geometry_msgs/msg/TwistWithCovariance",
-            twist=make("geometry_msgs/msg/Twist", linear=make("geometry_msgs/msg/Vector3", x=v, y=0.0, z=0.0)),
-        )
-        out.append(
-            make(
-                "nav_msgs/msg/Odometry",
-                header=header(make, stamp_ns),
-                child_frame_id="base_link",
-                pose=make("geometry_msgs/msg/PoseWithCovariance", pose=pose(make, x, y, yaw)),
-                twist=twist,
-            )
-        )
+        out.append(odometry(make, stamp_ns, timeline["x"][i], timeline["y"][i], float(timeline["yaw"][i]), v))
     return out
 
 

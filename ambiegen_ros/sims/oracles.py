@@ -117,7 +117,9 @@ class RobotJudge(_Judge):
             return self.monitors.time_limit
         return self.cfg.time_limit(self.route_length) if self.route_length is not None else math.inf
 
-    def _start(self, x0: float, y0: float) -> None:
+    def start(self, x0: float, y0: float) -> np.ndarray:
+        """Plan the route from the start (map frame) before the first sample; returns its waypoints
+        ((K, 2), map frame; none without a route). Else the first sample starts it."""
         res, (ox, oy) = self.resolution, self.origin
         cell = lambda px, py: (int(math.floor((px - ox) / res)), int(math.floor((py - oy) / res)))  # noqa: E731
         waypoints, length = robot.plan_route(self.grid, res, cell(x0, y0), cell(*self.goal), self.cfg,
@@ -127,6 +129,7 @@ class RobotJudge(_Judge):
         self.monitors = robot.RobotMonitors(self.cfg, self.goal, self.cfg.time_limit(length),
                                             waypoints[1:] + self.origin if len(waypoints) else None,
                                             no_route=not len(waypoints))
+        return waypoints + self.origin if len(waypoints) else waypoints
 
     def _headings(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Heading of the motion into each sample (the previous one where it did not move)."""
@@ -155,7 +158,7 @@ class RobotJudge(_Judge):
         flags = np.zeros(len(t), dtype=bool) if stall is None else np.atleast_1d(np.asarray(stall)).astype(bool)
         clear = self.walls.clearance(x, y, yaw)
         if self.monitors is None:
-            self._start(float(x[0]), float(y[0]))
+            self.start(float(x[0]), float(y[0]))
         mon = self.monitors
         assert mon is not None
         used = len(t)

@@ -19,10 +19,11 @@ FAILURE_KINDS = {
     "sim_timeout": 8,
     "loiter": 9,
     "invalid_test": 10,
+    "nav2_aborted": 11,
 }
 # Kinds that say the system under test failed (``Outcome.failed``); every other kind says nothing
 # about it: ``none`` passed, ``invalid_test`` is a scenario no reference passes (never a failure).
-SUT_FAILURES = ("collision", "stall", "timeout", "out_of_lane", "requirement", "loiter")
+SUT_FAILURES = ("collision", "stall", "timeout", "out_of_lane", "requirement", "loiter", "nav2_aborted")
 FAILURE_NAMES = {code: name for name, code in FAILURE_KINDS.items()}
 
 

@@ -410,6 +410,57 @@ def nd_driver(cfg: RobotSimConfig) -> NDDriver:
                     laser_buffer=cfg.laser_buffer)
 
 
+class RouteFollower:
+    """The robot's controller: the route's waypoints, one at a time, to the local planner.
+
+    It moves on to the next waypoint within ``waypoint_tolerance`` of the current one (the
+    paper's waypoint follower) and asks the planner (``cfg.planner``: Player's ND driver, or the
+    gap planner) for a velocity command on each laser scan. ``drive`` runs it in process; the
+    ``nd_driver`` node runs the same one behind ROS topics, so both steer alike.
+    """
+
+    def __init__(self, cfg: RobotSimConfig, waypoints: np.ndarray, beam_angles: np.ndarray,
+                 pose: tuple[float, float, float], t: float = 0.0):
+        self.cfg = cfg
+        self.waypoints = np.asarray(waypoints, dtype=float).reshape(-1, 2)
+        self.beam_angles = np.asarray(beam_angles, dtype=float)
+        self.driver = nd_driver(cfg) if cfg.planner == "nd" else None
+        self.gap = GapPlanner(cfg, self.beam_angles) if cfg.planner == "gap" else None
+        self.wp = min(1, len(self.waypoints) - 1)
+        if self.driver is not None and len(self.waypoints):
+            self.driver.set_goal(self.waypoints[self.wp], t, pose)
+
+    @property
+    def has_route(self) -> bool:
+        return bool(len(self.waypoints))
+
+    def advance(self, t: float, pose: tuple[float, float, float]) -> None:
+        """Move on past every waypoint the robot is already within ``waypoint_tolerance`` of."""
+        wps, x, y = self.waypoints, pose[0], pose[1]
+        while self.wp < len(wps) - 1 and math.hypot(wps[self.wp, 0] - x, wps[self.wp, 1] - y) < self.cfg.waypoint_tolerance:
+            self.wp += 1
+            if self.driver is not None:
+                self.driver.set_goal(wps[self.wp], t, pose)
+
+    def command(self, t: float, pose: tuple[float, float, float], v_now: float, w_now: float,
+                ranges: np.ndarray, hits: np.ndarray) -> tuple[float, float, str | None]:
+        """The velocity command for one scan at ``pose`` (ranges along ``beam_angles``; ``hits``: the
+        beams that hit a wall), and why the robot gave up (its stall flag), if it did."""
+        x, y, yaw = pose
+        if self.driver is not None:
+            angles = self.beam_angles[hits] + yaw
+            self.driver.add_scan(np.column_stack([x + ranges[hits] * np.cos(angles), y + ranges[hits] * np.sin(angles)]))
+            v_cmd, w_cmd = self.driver.command(t, pose, v_now, w_now)
+            return v_cmd, w_cmd, self.driver.gave_up
+        if self.gap is not None:
+            tx, ty = self.waypoints[self.wp]
+            bearing = (math.atan2(ty - y, tx - x) - yaw + math.pi) % (2 * math.pi) - math.pi
+            v_cmd, w_cmd = self.gap.command(bearing, math.hypot(tx - x, ty - y), self.wp == len(self.waypoints) - 1,
+                                            ranges)
+            return v_cmd, w_cmd, None
+        return 0.0, 0.0, None
+
+
 # --- the simulation ------------------------------------------------------------------------------
 def plan_route(grid: np.ndarray, resolution: float, start: tuple[int, int], goal: tuple[int, int],
                config: RobotSimConfig, diagonal: str = "both_free") -> tuple[np.ndarray, float]:
@@ -472,46 +523,26 @@ def drive(grid: np.ndarray, resolution: float, start_xy: tuple[float, float], go
         ahead = waypoints[1] if len(waypoints) > 1 else (gx, gy)
         heading = math.atan2(ahead[1] - sy, ahead[0] - sx)
     world = RobotWorld(grid, resolution, cfg, (sx, sy, heading), np.random.default_rng(seed))
-    beam_angles = world.beam_angles
-    driver = nd_driver(cfg) if cfg.planner == "nd" else None
-    gap = GapPlanner(cfg, beam_angles) if cfg.planner == "gap" else None
+    follower = RouteFollower(cfg, waypoints, world.beam_angles, world.pose)
     monitors = RobotMonitors(cfg, (gx, gy), time_limit, waypoints[1:], no_route=not len(waypoints))
 
     x, y, yaw = world.pose
     n_max = int(math.ceil(time_limit / cfg.dt - 1e-9))
     rec = np.zeros((n_max + 1, 6))  # t, x, y, yaw, v, stall
     rec[0] = (0.0, x, y, yaw, 0.0, 0.0)
-    wp = min(1, len(waypoints) - 1)
-    if driver is not None and len(waypoints):
-        driver.set_goal(waypoints[wp], 0.0, (x, y, yaw))
     k = 0
     monitors.update(0.0, x, y, world.clearance())
     while not monitors.decided and k < n_max:
         k += 1
         t = k * cfg.dt
-        x, y, yaw = world.pose
         # --- sense and decide ---
-        v_cmd = w_cmd = 0.0
-        stall_cause = None
-        while (wp < len(waypoints) - 1
-               and math.hypot(waypoints[wp, 0] - x, waypoints[wp, 1] - y) < cfg.waypoint_tolerance):
-            wp += 1
-            if driver is not None:
-                driver.set_goal(waypoints[wp], t, (x, y, yaw))
-        if not len(waypoints):  # no route: nothing to drive to; the robot stands where it is
-            rec[k] = (t, x, y, yaw, 0.0, 0.0)
-            monitors.update(t, x, y, world.clearance())
+        follower.advance(t, world.pose)
+        if not follower.has_route:  # no route: nothing to drive to; the robot stands where it is
+            rec[k] = (t, world.x, world.y, world.yaw, 0.0, 0.0)
+            monitors.update(t, world.x, world.y, world.clearance())
             continue
         ranges, hits = world.scan()
-        if driver is not None:
-            angles = beam_angles[hits] + yaw
-            driver.add_scan(np.column_stack([x + ranges[hits] * np.cos(angles), y + ranges[hits] * np.sin(angles)]))
-            v_cmd, w_cmd = driver.command(t, (x, y, yaw), world.v, world.w)
-            stall_cause = driver.gave_up
-        elif gap is not None:
-            tx, ty = waypoints[wp]
-            bearing = (math.atan2(ty - y, tx - x) - yaw + math.pi) % (2 * math.pi) - math.pi
-            v_cmd, w_cmd = gap.command(bearing, math.hypot(tx - x, ty - y), wp == len(waypoints) - 1, ranges)
+        v_cmd, w_cmd, stall_cause = follower.command(t, world.pose, world.v, world.w, ranges, hits)
         # --- act: the world moves the body; a wall stops it ---
         clearance = world.step(v_cmd, w_cmd)
         rec[k] = (t, world.x, world.y, world.yaw, world.v, float(stall_cause is not None))
@@ -519,7 +550,7 @@ def drive(grid: np.ndarray, resolution: float, start_xy: tuple[float, float], go
     rec = rec[:k + 1]
     m = monitors.metrics()
     detail = monitors.detail
-    if driver is not None and m["stall_cause"] in ("emergency_stop", "no_region", "no_progress", "no_motion"):
+    if follower.driver is not None and m["stall_cause"] in ("emergency_stop", "no_region", "no_progress", "no_motion"):
         detail += " (the ND driver gave up)"
     return {
         **m,
@@ -582,6 +613,6 @@ def simulate(problem: Any, scenario: Any, config: RobotSimConfig | None = None, 
 # The world's names stay importable from here (``sims.robot.WallGeometry``, ``cast_rays``, ...).
 __all__ = ["ENGINES", "GOAL_TOLERANCE", "ND_GOAL_TOLERANCE", "PIONEER2DX", "PIONEER2DX_LENGTH", "PIONEER2DX_ORIGIN_X",
            "PIONEER2DX_WIDTH", "PLANNERS", "STALL_CAUSES", "WAYPOINT_TOLERANCE", "WORLD_FIELDS", "GapPlanner",
-           "RobotMonitors", "RobotSimConfig", "RobotWorld", "WallGeometry", "cast_rays", "clearances", "drive",
-           "nd_driver", "navigate", "pad_grid", "pioneer2dx_footprint", "plan_route", "rdp", "simulate",
+           "RobotMonitors", "RobotSimConfig", "RobotWorld", "RouteFollower", "WallGeometry", "cast_rays", "clearances",
+           "drive", "nd_driver", "navigate", "pad_grid", "pioneer2dx_footprint", "plan_route", "rdp", "simulate",
            "wall_distance"]

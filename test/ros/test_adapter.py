@@ -15,7 +15,6 @@ from __future__ import annotations
 import math
 import os
 import re
-import signal
 import subprocess
 import sys
 import time
@@ -23,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 REPO = Path(__file__).resolve().parents[2]
-for extra in (REPO, REPO / "test" / "sims"):
+for extra in (REPO, REPO / "test", REPO / "test" / "sims"):
     if str(extra) not in sys.path:
         sys.path.insert(0, str(extra))
 
@@ -38,6 +37,7 @@ from ambiegen_ros.sims.full_model import full_model_executor  # noqa: E402
 from ambiegen_ros.sims.room import SteppedRoom  # noqa: E402
 from sim_nodes.sut_adapter import sample_times, to_map_frame  # noqa: E402
 from test_full_models import GENTLE, HAIRPIN, corridor_map, easy_robot_elements  # noqa: E402
+from helpers.sut_graph import Driver, Procs  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -222,106 +222,6 @@ pytestmark_dds = pytest.mark.skipif(
 )
 
 
-class Procs:
-    """Node subprocesses of one test, stopped by pid at the end."""
-
-    def __init__(self, domain: int, log_dir: Path):
-        self.env = dict(os.environ, ROS_DOMAIN_ID=str(domain), PYTHONUNBUFFERED="1")
-        self.env.pop("AMBIEGEN_TRANSPORT", None)
-        self.log_dir = log_dir
-        self.procs: dict[str, subprocess.Popen] = {}
-
-    def start(self, name: str, module: str, **params: Any) -> subprocess.Popen:
-        args = [sys.executable, "-m", module, "--ros-args", "-r", f"__node:={name}"]
-        for key, value in params.items():
-            value = ("true" if value else "false") if isinstance(value, bool) else value
-            args += ["-p", f"{key}:={value}"]
-        self.log_dir.mkdir(parents=True, exist_ok=True)
-        with open(self.log_dir / f"{name}.log", "wb") as log:
-            self.procs[name] = subprocess.Popen(args, cwd=REPO, env=self.env, stdout=log, stderr=subprocess.STDOUT)
-        return self.procs[name]
-
-    def log(self, name: str) -> str:
-        return (self.log_dir / f"{name}.log").read_text(errors="replace")
-
-    def logs(self) -> str:
-        return "\n".join(f"--- {n}\n{self.log(n)[-2500:]}" for n in self.procs)
-
-    def stop_all(self) -> None:
-        for proc in self.procs.values():
-            if proc.poll() is None:
-                proc.send_signal(signal.SIGINT)
-        for proc in self.procs.values():
-            try:
-                proc.wait(5)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-
-
-@pytest.fixture
-def graph(tmp_path, monkeypatch, ros_domain):
-    """make() -> (Procs, driver node in this process), on the test's own domain."""
-    made = []
-
-    def make(domain: int = ros_domain):
-        from ambiegen_ros.ros.transport import create_node
-
-        monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
-        monkeypatch.delenv("AMBIEGEN_TRANSPORT", raising=False)
-        procs = Procs(domain, tmp_path / f"logs{domain}")
-        node = create_node("adapter_test_driver", argv=[])
-        made.append((procs, node))
-        return procs, node
-
-    yield make
-    for procs, node in made:
-        node.shutdown()
-        procs.stop_all()
-
-
-class Driver:
-    """Publishes scenario messages like the generator and collects every result."""
-
-    def __init__(self, node, problem):
-        from ambiegen_ros.ros import topics
-        from ambiegen_ros.ros.qos import STREAM
-
-        self.node, self.problem, self.conv = node, problem, conversions
-        self.pub = node.create_publisher(topics.SCENARIO_TYPES[problem.name], topics.scenarios(problem.name), STREAM)
-        self.results: dict[tuple[str, int], Any] = {}
-        self.workers: dict[tuple[str, int], str] = {}
-        self.scenarios: dict[tuple[str, int], Any] = {}
-        node.create_subscription(topics.RESULT_TYPE, topics.RESULTS, self.on_result, STREAM)
-        node.create_subscription(topics.SCENARIO_TYPES[problem.name], topics.scenarios(problem.name),
-                                 self.on_scenario, STREAM)
-
-    def on_result(self, msg) -> None:
-        key = (msg.run_id, int(msg.scenario_id))
-        self.results.setdefault(key, self.conv.outcome_from_message(msg))
-        self.workers.setdefault(key, msg.worker)
-
-    def on_scenario(self, msg) -> None:
-        scenario, _ = self.conv.scenario_from_message(self.problem, msg)
-        self.scenarios[(msg.meta.run_id, int(msg.meta.scenario_id))] = scenario
-
-    def wait_matched(self, count: int = 1, timeout: float = 120.0) -> None:  # a safety net
-        assert self.node.spin_until(lambda: self.pub.subscription_count() >= count + 1, timeout), "adapter not matched"
-
-    def send(self, run_id: str, scenarios: list) -> None:
-        from ambiegen_ros.ros.conversions import ScenarioMeta
-
-        for i, sc in enumerate(scenarios):
-            msg = self.conv.scenario_message(self.node.new_message, self.node.now_ns(), self.problem, sc,
-                                             ScenarioMeta(run_id, i))
-            self.pub.publish(msg)
-
-    def wait(self, run_id: str, count: int, timeout: float) -> list:
-        done = lambda: sum(k[0] == run_id for k in self.results) >= count  # noqa: E731
-        self.node.spin_until(done, timeout)
-        return [self.results.get((run_id, i)) for i in range(count)]
-
-
 def start_pair(procs: Procs, problem: str, scale: float, **adapter) -> None:
     profile = PROFILE[problem]
     procs.start("external", "sim_nodes.external_sim", problem=problem, time_scale=scale, profile=profile)
@@ -463,7 +363,8 @@ def test_a_foreign_robot_stack_with_a_bumper(graph, problems):
     p = problems["robot"]
     procs, node = graph()
     procs.start("adapter", "sim_nodes.sut_adapter", problem="robot", worker_id="sut", collision_topic="/bumper",
-                odom_frame="start", stamp_clock="receive", time_scale=1.0, settle_time=0.1)
+                odom_frame="start", stamp_clock="receive", time_scale=1.0, settle_time=0.1,
+                start_heading="scenario")  # the scenario's own start pose (heading 0), not one facing the route
     driver = Driver(node, p)
     seen: dict[str, Any] = {}
     node.create_subscription("geometry_msgs/msg/PoseWithCovarianceStamped", "/initialpose",

@@ -1,6 +1,7 @@
 """Hypothesis against every subscription handler of every node, through the transport's guard.
 
-The nodes are the real ones (worker, SUT adapter, external simulator, generator, recorder) on the
+The nodes are the real ones (worker, SUT adapter, external simulator, robot world, ND driver,
+generator, recorder) on the
 DDS backend in this process (a ROS_DOMAIN_ID of its own from ``module_domains``); each generated sample is handed
 to the subscription exactly as the backend hands it a received sample (``DdsSubscription._deliver``:
 size limit, decoding, handler). Nothing may escape into ``spin``, every sample is counted, memory
@@ -55,6 +56,8 @@ def graph(tmp_path_factory, module_domains):
     from ambiegen_ros.nodes.recorder import Recorder
     from ambiegen_ros.ros.transport import create_node
     from sim_nodes.external_sim import ExternalSim
+    from sim_nodes.nd_driver import NDDriverNode
+    from sim_nodes.robot_world import RobotWorldNode
     from sim_nodes.sut_adapter import SutAdapter
     from sim_nodes.worker import SimWorker
 
@@ -70,6 +73,10 @@ def graph(tmp_path_factory, module_domains):
                                                      backend="dds")),
         "external_room": ExternalSim(node=create_node("fuzz_ext_room", argv=["x", "--ros-args", "-p", "problem:=thermostat"],
                                                       backend="dds")),
+        "robot_world": RobotWorldNode(node=create_node("fuzz_world", argv=["x", "--ros-args", "-p", "map_topic:=/fuzz/map"],
+                                                       backend="dds")),
+        "nd_driver": NDDriverNode(node=create_node("fuzz_nd", argv=["x", "--ros-args", "-p", "map_topic:=/fuzz/map"],
+                                                   backend="dds")),
         "generator": Generator(node=create_node("fuzz_generator", argv=[
             "x", "--ros-args", "-p", "problem:=thermostat", "-p", "run_id:=fuzz-run", "-p", "mode:=in_the_loop",
             "-p", "min_subscribers:=0"], backend="dds")),

@@ -146,6 +146,60 @@ def test_launch_file_declares_every_argument_with_ros_launch():
     assert {a.name for a in description.get_launch_arguments()} == set(LAUNCH_ARGUMENTS)
 
 
+# --- Nav2 as the system under test: nav2_campaign.launch.py's plan --------------------------------------
+def test_nav2_plan_starts_world_nav2_adapter_and_scales_nav2s_rates(tmp_path):
+    import yaml
+
+    p = launch_logic.plan_nav2_campaign({"seed": "3", "output_dir": str(tmp_path), "time_scale": "4"},
+                                        share_dir=str(REPO))  # the repo's config/ stands in for the share dir
+    assert [(n.name, n.package) for n in p.nodes] == [
+        ("recorder", "ambiegen_ros"), ("robot_world", "ambiegen_ros"), ("controller_server", "nav2_controller"),
+        ("planner_server", "nav2_planner"), ("behavior_server", "nav2_behaviors"), ("bt_navigator", "nav2_bt_navigator"),
+        ("lifecycle_manager_navigation", "nav2_lifecycle_manager"), ("sut_adapter", "ambiegen_ros"),
+        ("generator", "ambiegen_ros")]
+    adapter, generator, world = p.node("sut_adapter").parameters, p.node("generator").parameters, p.node("robot_world")
+    assert adapter["goal_mode"] == "action" and adapter["time_scale"] == 4.0 and adapter["collision_topic"] == "/collision"
+    assert world.parameters["time_scale"] == 4.0 and world.parameters["seed"] == 3 == p.seed
+    assert generator["min_workers"] == 1 and generator["max_in_flight"] == 1
+    assert generator["result_timeout"] == pytest.approx(2 * 300 / 4 + 60)
+    assert "/scan" in p.node("recorder").parameters["extra_topics"].split(",")
+    (scaled,) = {f for n in p.nodes for f in n.params_files}
+    assert Path(scaled).parent == tmp_path and p.run_id in Path(scaled).name
+    ours = yaml.safe_load((REPO / "config" / "nav2" / "pioneer_navfn_dwb.yaml").read_text())
+    got = yaml.safe_load(Path(scaled).read_text())
+    cs, ours_cs = got["controller_server"]["ros__parameters"], ours["controller_server"]["ros__parameters"]
+    assert cs["controller_frequency"] == 4 * ours_cs["controller_frequency"]
+    assert cs["progress_checker"]["movement_time_allowance"] == ours_cs["progress_checker"]["movement_time_allowance"]
+    local = got["local_costmap"]["local_costmap"]["ros__parameters"]
+    assert local["update_frequency"] == 4 * ours["local_costmap"]["local_costmap"]["ros__parameters"]["update_frequency"]
+    assert got["bt_navigator"]["ros__parameters"]["bt_loop_duration"] == round(
+        ours["bt_navigator"]["ros__parameters"]["bt_loop_duration"] / 4)
+    assert got["lifecycle_manager_navigation"] == ours["lifecycle_manager_navigation"]  # nothing else changes
+
+
+def test_nav2_plan_takes_the_users_params_file_and_names_a_bad_one(tmp_path):
+    theirs = tmp_path / "theirs.yaml"
+    theirs.write_text("controller_server:\n  ros__parameters:\n    controller_frequency: 10.0\n")
+    p = launch_logic.plan_nav2_campaign({"output_dir": str(tmp_path), "params_file": str(theirs), "seed": "1"},
+                                        share_dir=str(REPO))
+    (scaled,) = {f for n in p.nodes for f in n.params_files}
+    assert "controller_frequency: 10.0" in Path(scaled).read_text()
+    with pytest.raises(ValueError, match="params_file"):
+        launch_logic.plan_nav2_campaign({"output_dir": str(tmp_path), "params_file": str(tmp_path / "none.yaml")},
+                                        share_dir=str(REPO))
+    with pytest.raises(ValueError, match="time_scale"):
+        launch_logic.plan_nav2_campaign({"output_dir": str(tmp_path), "time_scale": "0"}, share_dir=str(REPO))
+
+
+def test_nav2_launch_file_takes_its_logic_from_the_plan():
+    tree = ast.parse((REPO / "launch" / "nav2_campaign.launch.py").read_text())
+    imported = [a.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+                and node.module == "ambiegen_ros.launch_logic" for a in node.names]
+    assert {"NAV2_LAUNCH_ARGUMENTS", "plan_nav2_campaign"} <= set(imported)
+    for needed in ("params_file", "time_scale", "overwrite", "output"):
+        assert needed in launch_logic.NAV2_LAUNCH_ARGUMENTS
+
+
 # --- the plan's node set, run as real processes ---------------------------------------------------------
 def test_plan_node_set_runs_a_campaign_and_keep_workers_leaves_them_running(nodes_factory, tmp_path, ros_domain):
     """The launch file's sequence with ``keep_workers:=true``: generator exits -> SIGINT to the

@@ -1,0 +1,157 @@
+"""A robot world hosted for someone else's controller, ROS-free: what the ``robot_world`` node runs.
+
+``sims.robot_world.RobotWorld`` is the body, its contact with walls and the laser. Here it is run
+the way a simulator runs for a navigation stack (Stage, Gazebo): the controller is outside, and
+only velocity commands come in.
+
+* *Time* counts whole steps of ``dt`` and never goes back: a new map or a teleport resets the
+  robot, not the clock, since ROS nodes on ``/clock`` treat a jump back as a restart. Each reset
+  takes one step, so that every message from before it carries an older stamp than any after.
+* *Commands* are held until a newer one arrives, for at most ``cmd_timeout`` simulated seconds
+  (then the robot brakes to a stop), as a robot base's velocity watchdog does; 0 holds forever.
+* *Scans* are due every ``scan_every`` steps, counted from the last new map or teleport (the
+  first one right away). Beams that hit nothing read ``inf`` (REP 117: no
+  return within range).
+* *Lockstep* (optional): after each scan the world waits for the controller's next command
+  before it steps on, so a controller as slow as it likes sees the same world as one that is
+  fast. Its run is then the in-process run, step for step (``sims.robot.drive`` steers one scan
+  per step with ``dt`` = the scan period).
+* *Laser noise* comes from a generator seeded with ``seed`` at every new map and teleport, so a
+  run is reproducible for its seed whatever came before it.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from .robot_world import RobotWorld
+
+
+class HostedWorld:
+    """One robot on the latest map, stepped by held velocity commands (module docstring).
+
+    Poses are in the map frame: the grid's cell (0, 0) starts at ``origin``. Before any map there
+    is no world (``ready`` is False) and ``step`` only advances the clock.
+    """
+
+    def __init__(self, config: Any, seed: int = 0, scan_every: int = 1, cmd_timeout: float = 0.5,
+                 lockstep: bool = False):
+        if not config.dt > 0:
+            raise ValueError("dt must be > 0")
+        self.cfg = config
+        self.seed = int(seed)
+        self.scan_every = max(1, int(scan_every))
+        self.cmd_timeout = float(cmd_timeout)
+        self.lockstep = bool(lockstep)
+        self.k = 0  # steps since the world started (the clock)
+        self.world: RobotWorld | None = None
+        self.origin = (0.0, 0.0)
+        self.pose0 = (0.0, 0.0, 0.0)  # where a new map puts the robot until a teleport says otherwise
+        self.cmd = (0.0, 0.0)
+        self.cmd_k = -1  # step at which the held command arrived (-1: none)
+        self.awaiting = False  # lockstep: a scan went out and no command answered it yet
+        self.next_scan_k = 0  # the step of the next scan (right away after a new map or teleport)
+        self.contact = False
+        self.runs = 0
+
+    # --- what the controller and the scenario send -----------------------------------------------
+    @property
+    def t(self) -> float:
+        """Simulated seconds since the world started."""
+        return self.k * self.cfg.dt
+
+    @property
+    def ready(self) -> bool:
+        return self.world is not None
+
+    def load_map(self, grid: np.ndarray, resolution: float, origin: tuple[float, float] = (0.0, 0.0)) -> None:
+        """A new map: a new world with the robot at the last teleport's pose, standing still."""
+        self.origin = (float(origin[0]), float(origin[1]))
+        self.world = RobotWorld(np.asarray(grid, dtype=bool), float(resolution), self.cfg, self._local(self.pose0),
+                                np.random.default_rng(self.seed))
+        self._restart()
+
+    def teleport(self, x: float, y: float, yaw: float) -> None:
+        """Put the robot at a map-frame pose, standing still (``/initialpose``)."""
+        self.pose0 = (float(x), float(y), float(yaw))
+        if self.world is not None:
+            w = self.world
+            w.x, w.y, w.yaw = self._local(self.pose0)
+            w.rng = np.random.default_rng(self.seed)
+            self._restart()
+
+    def _restart(self) -> None:
+        w = self.world
+        assert w is not None
+        self.k += 1
+        w.v = w.w = 0.0
+        self.cmd, self.cmd_k = (0.0, 0.0), -1
+        self.contact = w.clearance() <= 0.0
+        self.awaiting = False
+        self.next_scan_k = self.k
+        self.runs += 1
+
+    def command(self, v: float, w: float) -> None:
+        """The controller's latest velocity command (forward m/s, turn rad/s)."""
+        if not (math.isfinite(v) and math.isfinite(w)):
+            raise ValueError(f"velocity command ({v}, {w}) is not finite")
+        self.cmd, self.cmd_k = (float(v), float(w)), self.k
+        self.awaiting = False
+
+    # --- stepping -----------------------------------------------------------------------------------
+    @property
+    def can_step(self) -> bool:
+        """False only while a lockstep world waits for the answer to its last scan."""
+        return not (self.lockstep and self.awaiting)
+
+    @property
+    def scan_due(self) -> bool:
+        return self.ready and self.k >= self.next_scan_k
+
+    def step(self) -> None:
+        """One ``dt``: the held command (zero once older than ``cmd_timeout``) moves the body."""
+        self.k += 1
+        w = self.world
+        if w is None:
+            return
+        v_cmd, w_cmd = self.cmd
+        if self.cmd_k < 0 or (self.cmd_timeout > 0 and (self.k - 1 - self.cmd_k) * self.cfg.dt > self.cmd_timeout + 1e-9):
+            v_cmd = w_cmd = 0.0
+        self.contact = w.step(v_cmd, w_cmd) <= 0.0
+
+    def scan(self) -> np.ndarray:
+        """Ranges of every beam at the current pose (``inf``: nothing within range). In lockstep
+        the world then waits for a command."""
+        assert self.world is not None
+        ranges, hits = self.world.scan()
+        self.next_scan_k = self.k + self.scan_every
+        if self.lockstep:
+            self.awaiting = True
+        return np.where(hits, ranges, np.inf)
+
+    # --- what the world shows ---------------------------------------------------------------------
+    @property
+    def pose(self) -> tuple[float, float, float]:
+        """The robot's map-frame pose (the last teleport's before any map)."""
+        if self.world is None:
+            return self.pose0
+        w = self.world
+        return w.x + self.origin[0], w.y + self.origin[1], w.yaw
+
+    @property
+    def twist(self) -> tuple[float, float]:
+        w = self.world
+        return (w.v, w.w) if w is not None else (0.0, 0.0)
+
+    @property
+    def beam_angles(self) -> np.ndarray:
+        half = math.radians(self.cfg.fov_deg) / 2
+        return np.linspace(-half, half, self.cfg.beams)
+
+    def _local(self, pose: tuple[float, float, float]) -> tuple[float, float, float]:
+        return pose[0] - self.origin[0], pose[1] - self.origin[1], pose[2]
+
+
+__all__ = ["HostedWorld"]

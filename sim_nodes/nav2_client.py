@@ -1,0 +1,117 @@
+"""What ``sut_adapter`` says to Nav2 besides topics (rclpy only): its lifecycle, costmaps and action.
+
+Written after ``nav2_simple_commander``'s ``BasicNavigator``, without blocking: every call is
+asynchronous and the adapter polls from its timers, so a slow Nav2 never stalls the executor.
+
+* ``missing()``: what Nav2 has not shown yet: the ``navigate_to_pose`` action server, and each of
+  ``lifecycle_nodes`` in state ``active`` (asked over ``<node>/get_state``, as
+  ``waitUntilNav2Active`` does);
+* ``clear_costmaps()``: both costmaps cleared entirely (``clear_entirely_*_costmap``), so marks of
+  the last scenario's walls never show up in the next map;
+* ``send(pose)``: the goal; its result (status succeeded | aborted | canceled, with Nav2's error
+  code and message when the action has them) lands in ``result``;
+* ``cancel()``: the running goal, once our oracle has decided before Nav2 did.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+STATUS_NAMES = {4: "succeeded", 5: "canceled", 6: "aborted"}  # action_msgs/GoalStatus
+
+
+class Nav2Client:  # pragma: no cover - needs rclpy and nav2_msgs (test/real_ros covers it with Nav2)
+    def __init__(self, rclpy_node: Any, action_name: str, lifecycle_nodes: list[str], costmap_services: list[str],
+                 logger: Any):
+        from nav2_msgs.action import NavigateToPose
+        from rclpy.action import ActionClient
+
+        self.node, self.logger = rclpy_node, logger
+        self.action_type = NavigateToPose
+        self.action = ActionClient(rclpy_node, NavigateToPose, action_name)
+        self.action_name = action_name
+        self.lifecycle_nodes = [n.strip().strip("/") for n in lifecycle_nodes if n.strip()]
+        self.costmap_services = [s.strip() for s in costmap_services if s.strip()]
+        self.active: set[str] = set()
+        self._asking: set[str] = set()
+        self._state_clients: dict[str, Any] = {}
+        self._clear_clients: dict[str, Any] = {}
+        self.handle: Any = None
+        self.result: dict[str, Any] | None = None
+        self.goals = 0
+
+    # --- readiness ------------------------------------------------------------------------------
+    def missing(self) -> list[str]:
+        """What Nav2 has not shown yet (empty: ready). Asks each inactive lifecycle node again."""
+        from lifecycle_msgs.srv import GetState
+
+        out = []
+        if not self.action.server_is_ready():
+            out.append(f"Nav2's {self.action_name} action server is not up")
+        for name in self.lifecycle_nodes:
+            if name in self.active:
+                continue
+            out.append(f"Nav2 node {name} is not active")
+            client = self._state_clients.get(name)
+            if client is None:
+                client = self._state_clients[name] = self.node.create_client(GetState, f"/{name}/get_state")
+            if name in self._asking or not client.service_is_ready():
+                continue
+            self._asking.add(name)
+            future = client.call_async(GetState.Request())
+
+            def done(f, name=name):
+                self._asking.discard(name)
+                response = f.result()
+                if response is not None and response.current_state.label == "active":
+                    self.active.add(name)
+
+            future.add_done_callback(done)
+        return out
+
+    def clear_costmaps(self) -> None:
+        from nav2_msgs.srv import ClearEntireCostmap
+
+        for service in self.costmap_services:
+            client = self._clear_clients.get(service)
+            if client is None:
+                client = self._clear_clients[service] = self.node.create_client(ClearEntireCostmap, service)
+            if client.service_is_ready():
+                client.call_async(ClearEntireCostmap.Request())
+            else:
+                self.logger.warning(f"{service} is not available: the costmap keeps the last scenario's marks")
+
+    # --- the goal -------------------------------------------------------------------------------
+    def send(self, pose: Any) -> None:
+        """Send a ``geometry_msgs/PoseStamped`` goal (an rclpy message); the outcome goes to ``result``."""
+        request = self.action_type.Goal()
+        request.pose = pose
+        self.handle, self.result = None, None
+        self.goals += 1
+        goal_number = self.goals
+
+        def on_response(future):
+            handle = future.result()
+            if goal_number != self.goals:  # an old scenario's goal: not ours to record
+                return
+            if handle is None or not handle.accepted:
+                self.result = {"status": "rejected", "error_code": 0, "error_msg": "goal rejected"}
+                return
+            self.handle = handle
+            handle.get_result_async().add_done_callback(on_result)
+
+        def on_result(future):
+            if goal_number != self.goals:
+                return
+            wrapped = future.result()
+            result = getattr(wrapped, "result", None)
+            self.result = {"status": STATUS_NAMES.get(int(wrapped.status), f"status {int(wrapped.status)}"),
+                           "error_code": int(getattr(result, "error_code", 0) or 0),
+                           "error_msg": str(getattr(result, "error_msg", "") or "")}
+
+        self.action.send_goal_async(request).add_done_callback(on_response)
+
+    def cancel(self) -> None:
+        if self.handle is not None and self.result is None:
+            self.handle.cancel_goal_async()
+        self.goals += 1  # whatever comes back for it now belongs to no scenario
+        self.handle = None

@@ -1,0 +1,217 @@
+"""`robot_world`: each robot scenario as a 2D world for someone else's navigation stack (Nav2's contract).
+
+A thin node over ``ambiegen_ros.sims.hosted_world.HostedWorld`` (the body, contact and laser of
+``sims.robot_world``, the same ones the full model drives). Every topic and frame is a parameter.
+
+In:
+* ``map_topic`` (``nav_msgs/OccupancyGrid``, reliable + transient local): a new map resets the
+  world (the robot stands still where the last initial pose put it);
+* ``initialpose_topic`` (``geometry_msgs/PoseWithCovarianceStamped``): teleport, standing still;
+* ``cmd_vel_topic`` (``geometry_msgs/Twist``, or ``TwistStamped`` with ``cmd_vel_stamped:=true``):
+  held for at most ``cmd_timeout`` simulated seconds.
+
+Out (stamps are simulated time):
+* ``clock_topic`` (``rosgraph_msgs/Clock``, best effort, ``clock_rate`` Hz of wall time; '' = none);
+* ``/tf``: ``map_frame -> odom_frame`` (identity) and ``odom_frame -> base_frame`` (ground truth)
+  every step; ``/tf_static``: ``base_frame -> scan_frame`` (the laser sits on the rotation centre);
+* ``odom_topic`` (``nav_msgs/Odometry``, pose and twist) every step;
+* ``scan_topic`` (``sensor_msgs/LaserScan``) every ``1 / scan_rate`` simulated seconds: ``sim.beams``
+  beams over ``sim.fov_deg``, ``sim.laser_range`` m, Gaussian noise ``sim.laser_noise`` m seeded
+  with ``seed`` per run; no return reads ``inf``;
+* ``collision_topic`` (``std_msgs/Bool``): true while the body touches a wall (it stops there, as
+  Stage's does), with every scan and on every change.
+
+Time: ``sim.dt`` (default 0.02 s, so odometry and TF come at 50 Hz) per step; the world runs
+``time_scale`` times faster than the wall clock (0 = as fast as it can). With ``lockstep:=true``
+it instead waits after each scan until a velocity command answers it (re-sending the scan every
+``resend_period`` wall seconds while it waits), so a slow controller sees the same run as a
+fast one; ``time_scale`` is then ignored. With ``cmd_vel_stamped:=true`` a command answers the
+scan whose stamp it carries (``nd_driver`` stamps them so), and a late command is never taken
+for the answer to a newer scan. Lockstep with ``sim.dt`` = ``1 / scan_rate`` = 0.1 s is
+the full model's own loop, step for step (``ambiegen campaign --stack nd``).
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from typing import Any
+
+from ambiegen_ros.core.config import ConfigError
+from ambiegen_ros.ros import conversions
+from ambiegen_ros.ros.qos import DEFAULT, LATCHED, Qos
+from ambiegen_ros.ros.transport import create_node
+from ambiegen_ros.sims.hosted_world import HostedWorld
+from ambiegen_ros.sims.robot import WORLD_FIELDS, RobotSimConfig
+from ambiegen_ros.nodes import run_node
+from sim_nodes.worker import sim_options
+
+SENSOR = Qos(reliable=True, transient_local=False, depth=10)
+CLOCK = Qos(reliable=False, transient_local=False, depth=1)  # rclcpp's ClockQoS: best effort, keep last 1
+TF = Qos(reliable=True, transient_local=False, depth=100)  # tf2_ros' broadcaster
+TF_STATIC = Qos(reliable=True, transient_local=True, depth=1)  # tf2_ros' static broadcaster
+MAX_STEPS_PER_TICK = 200  # a world behind its schedule catches up this many steps per tick at most
+
+
+class RobotWorldNode:
+    def __init__(self, argv: list[str] | None = None, node=None):
+        self.node = node or create_node("robot_world", argv=argv)
+        n = self.node
+        p = n.declare_parameter
+        topic = {name: p(f"{name}_topic", default, desc) for name, default, desc in (
+            ("map", "/map", "nav_msgs/OccupancyGrid in (a new map resets the world)"),
+            ("initialpose", "/initialpose", "PoseWithCovarianceStamped in (teleport)"),
+            ("cmd_vel", "/cmd_vel", "velocity commands in"),
+            ("odom", "/odom", "nav_msgs/Odometry out"),
+            ("scan", "/scan", "sensor_msgs/LaserScan out"),
+            ("collision", "/collision", "std_msgs/Bool out, true while touching a wall ('' = none)"),
+            ("clock", "/clock", "rosgraph_msgs/Clock out ('' = none)"))}
+        self.frames = {name: p(f"{name}_frame", default) for name, default in (
+            ("map", "map"), ("odom", "odom"), ("base", "base_link"), ("scan", "base_scan"))}
+        stamped = self.stamped = p("cmd_vel_stamped", False, "velocity commands are geometry_msgs/TwistStamped "
+                                                             "(in lockstep: stamped with the scan they answer)")
+        self.time_scale = float(p("time_scale", 1.0, "simulated seconds per wall second (0 = as fast as possible)"))
+        lockstep = bool(p("lockstep", False, "after each scan, wait for a velocity command before stepping on"))
+        scan_rate = float(p("scan_rate", 10.0, "laser scans per simulated second"))
+        clock_rate = float(p("clock_rate", 100.0, "clock messages per wall second"))
+        cmd_timeout = float(p("cmd_timeout", 0.5, "simulated seconds a command is held (0 = until the next)"))
+        self.resend_period = float(p("resend_period", 0.2, "lockstep: wall seconds before an unanswered scan is re-sent"))
+        seed = int(p("seed", 0, "seed of the laser noise, restarted with every new map and teleport"))
+        cfg = sim_options(n, RobotSimConfig, WORLD_FIELDS, defaults={"dt": 0.02})
+        for name, value in (("time_scale", self.time_scale), ("cmd_timeout", cmd_timeout)):
+            if not value >= 0:
+                raise ConfigError(f"{name}: must be >= 0")
+        for name, value in (("scan_rate", scan_rate), ("clock_rate", clock_rate), ("resend_period", self.resend_period)):
+            if not value > 0:
+                raise ConfigError(f"{name}: must be > 0")
+        ratio = 1.0 / (scan_rate * cfg.dt)
+        if ratio < 1 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
+            raise ConfigError(f"scan_rate: 1 / (scan_rate x sim.dt) must be a whole number of steps, got {ratio:g}")
+        self.world = HostedWorld(cfg, seed, int(round(ratio)), cmd_timeout, lockstep)
+        self.cfg = cfg
+        self.scan_period = 1.0 / scan_rate
+        self.angles = self.world.beam_angles
+
+        make = self._make = n.new_message
+        self.pub_odom = n.create_publisher("nav_msgs/msg/Odometry", topic["odom"], SENSOR)
+        self.pub_scan = n.create_publisher("sensor_msgs/msg/LaserScan", topic["scan"], SENSOR)
+        self.pub_tf = n.create_publisher("tf2_msgs/msg/TFMessage", "/tf", TF)
+        self.pub_tf_static = n.create_publisher("tf2_msgs/msg/TFMessage", "/tf_static", TF_STATIC)
+        self.pub_collision = (n.create_publisher("std_msgs/msg/Bool", topic["collision"], DEFAULT)
+                              if topic["collision"] else None)
+        self.pub_clock = (n.create_publisher("rosgraph_msgs/msg/Clock", topic["clock"], CLOCK)
+                          if topic["clock"] else None)
+        n.create_subscription("nav_msgs/msg/OccupancyGrid", topic["map"], self.on_map, LATCHED)
+        n.create_subscription("geometry_msgs/msg/PoseWithCovarianceStamped", topic["initialpose"], self.on_initialpose,
+                              DEFAULT)
+        n.create_subscription("geometry_msgs/msg/TwistStamped" if stamped else "geometry_msgs/msg/Twist",
+                              topic["cmd_vel"], self.on_cmd_vel, DEFAULT)
+        self.start_ns = n.now_ns()  # simulated time 0 on the stamps: the wall time the world started
+        self.wall0, self.k0 = time.monotonic(), 0  # the pacing anchor (free-running)
+        self.last_scan_wall = 0.0
+        self.last_scan_msg: Any = None
+        self.scan_stamp = -1
+        self.last_odom_msg: Any = None
+        self.last_collision: bool | None = None
+        self.pub_tf_static.publish(make("tf2_msgs/msg/TFMessage", transforms=[
+            conversions.transform(make, self.start_ns, self.frames["base"], self.frames["scan"])]))
+        n.create_timer(1.0 / clock_rate, self.tick)
+        n.logger.info(f"robot world: {'lockstep' if lockstep else f'{self.time_scale:g}x real time'}, step "
+                      f"{cfg.dt:g} s, scans at {scan_rate:g} Hz on {topic['scan']}, commands from {topic['cmd_vel']}")
+
+    # --- inputs ---------------------------------------------------------------------------------
+    def on_map(self, msg: Any) -> None:
+        info = msg.info
+        grid = conversions.grid_from_message(msg)
+        self.world.load_map(grid, float(info.resolution), (float(info.origin.position.x), float(info.origin.position.y)))
+        self.node.logger.info(f"map {info.width}x{info.height} at {info.resolution:g} m: world reset (run {self.world.runs})")
+        self._publish_state(scan=True)
+
+    def on_initialpose(self, msg: Any) -> None:
+        pose = msg.pose.pose
+        x, y = conversions.require_finite((pose.position.x, pose.position.y), "pose.pose.position")
+        yaw = conversions.yaw_of(pose.orientation)
+        self.world.teleport(float(x), float(y), yaw)
+        self.node.logger.info(f"teleported to ({x:.2f}, {y:.2f}, {math.degrees(yaw):.0f} deg)")
+        if self.world.ready:
+            self._publish_state(scan=True)
+
+    def on_cmd_vel(self, msg: Any) -> None:
+        w = self.world
+        command = conversions.velocity_command(msg)  # a non-finite command raises: dropped, counted
+        if w.lockstep:
+            # only an answer to the scan the world waits on moves it: a stamped command names that
+            # scan (its stamp); a plain one counts while the world waits (a late one from the last
+            # run would otherwise start this one)
+            if not w.awaiting or (self.stamped and conversions.stamp_ns(msg.header) != self.scan_stamp):
+                return
+            w.command(*command)
+            self._advance(MAX_STEPS_PER_TICK)
+        else:
+            w.command(*command)
+
+    # --- stepping -------------------------------------------------------------------------------
+    def tick(self) -> None:
+        w = self.world
+        if w.lockstep:
+            if w.awaiting and time.monotonic() - self.last_scan_wall > self.resend_period:
+                self._resend()
+        elif self.time_scale > 0:
+            behind = self.k0 + int((time.monotonic() - self.wall0) * self.time_scale / self.cfg.dt) - w.k
+            if behind > MAX_STEPS_PER_TICK:  # too slow for the time scale: run on from here, never in bursts
+                self.wall0, self.k0 = time.monotonic(), w.k
+                behind = MAX_STEPS_PER_TICK
+            self._advance(behind)
+        else:
+            self._advance(MAX_STEPS_PER_TICK)
+        if self.pub_clock is not None:
+            self.pub_clock.publish(self._make("rosgraph_msgs/msg/Clock", clock=conversions.stamp(self._make, self._stamp())))
+
+    def _advance(self, steps: int) -> None:
+        """Up to ``steps`` steps, each publishing odometry and TF (and a scan when one is due)."""
+        w = self.world
+        for _ in range(max(0, steps)):
+            if not w.can_step:
+                return
+            w.step()
+            if w.ready:
+                self._publish_state(scan=w.scan_due)
+                if w.lockstep and w.awaiting:
+                    return
+
+    def _stamp(self) -> int:
+        return self.start_ns + int(round(self.world.k * self.cfg.dt * 1e9))
+
+    def _publish_state(self, scan: bool) -> None:
+        w, make, f = self.world, self._make, self.frames
+        stamp = self._stamp()
+        x, y, yaw = w.pose
+        v, turn = w.twist
+        self.last_odom_msg = conversions.odometry(make, stamp, x, y, yaw, v, turn, f["odom"], f["base"])
+        self.pub_odom.publish(self.last_odom_msg)
+        self.pub_tf.publish(make("tf2_msgs/msg/TFMessage", transforms=[
+            conversions.transform(make, stamp, f["map"], f["odom"]),
+            conversions.transform(make, stamp, f["odom"], f["base"], x, y, yaw)]))
+        if scan:
+            self.last_scan_msg = conversions.laser_scan(make, stamp, f["scan"], self.angles[0], self.angles[-1], w.scan(),
+                                                        self.cfg.laser_range, self.scan_period)
+            self.pub_scan.publish(self.last_scan_msg)
+            self.last_scan_wall, self.scan_stamp = time.monotonic(), stamp
+        if self.pub_collision is not None and (scan or w.contact != self.last_collision):
+            self.pub_collision.publish(make("std_msgs/msg/Bool", data=bool(w.contact)))
+            self.last_collision = w.contact
+
+    def _resend(self) -> None:
+        """Lockstep: the unanswered scan and its odometry again (same stamps: nothing new happened)."""
+        if self.last_odom_msg is not None and self.last_scan_msg is not None:
+            self.pub_odom.publish(self.last_odom_msg)
+            self.pub_scan.publish(self.last_scan_msg)
+        self.last_scan_wall = time.monotonic()
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run_node("robot_world", lambda: RobotWorldNode(argv), doc=__doc__)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

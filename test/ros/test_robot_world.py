@@ -1,0 +1,169 @@
+"""A robot stack we did not build in: ``robot_world`` hosting each map, ``nd_driver`` (our Nearness
+Diagram robot on Nav2's topics) driving in it, ``sut_adapter`` judging it, each a real subprocess on
+real DDS (each test its own ROS_DOMAIN_ID).
+
+* the world alone, free-running: ``/clock``, ``/tf``, ``/tf_static``, ``/odom``, ``/scan`` (inf = no
+  return) and the collision flag, with the body stopped at a wall;
+* world + stack + adapter: every verdict equals the in-process full model's on the same maps and
+  laser seed (a pass, a stall, a loiter; an invalid test is never sent), and every path is, to the
+  bit, the in-process run fed the wire's number formats (``helpers.wire``);
+* ``ambiegen campaign --problem robot --stack nd``: every scenario answered, and the MCAP, read
+  back with the ``mcap`` library (not our writer's code), holds every scenario, every result and
+  the robot's topics with their publishers' QoS.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+for extra in (REPO, REPO / "test", REPO / "test" / "sims"):
+    if str(extra) not in sys.path:
+        sys.path.insert(0, str(extra))
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from ambiegen_ros.problems import get_problem  # noqa: E402
+from ambiegen_ros.ros import conversions  # noqa: E402
+from ambiegen_ros.ros.qos import DEFAULT, LATCHED, Qos  # noqa: E402
+from ambiegen_ros.sims.full_model import full_model_executor  # noqa: E402
+from helpers.sut_graph import Driver  # noqa: E402
+from helpers.wire import wire_emulation  # noqa: E402
+from test_full_models import box, easy_robot_elements  # noqa: E402
+
+pytestmark = pytest.mark.skipif(os.environ.get("AMBIEGEN_TRANSPORT", "auto") == "rclpy",
+                                reason="these tests drive the DDS backend")
+FAILURES = json.loads((REPO / "test" / "data" / "robot_nd_failures.json").read_text())
+LOCKSTEP = {"lockstep": True, "time_scale": 0.0, "scan_rate": 10.0, "sim.dt": 0.1,  # the full model's loop
+            "cmd_vel_stamped": True}
+
+
+def test_the_world_alone_speaks_nav2s_topics(graph):
+    procs, node = graph()
+    procs.start("world", "sim_nodes.robot_world", time_scale=5.0, cmd_timeout=0.0)
+    got: dict[str, list] = {k: [] for k in ("clock", "tf", "tf_static", "odom", "scan", "collision")}
+    node.create_subscription("rosgraph_msgs/msg/Clock", "/clock", lambda m: got["clock"].append(m.clock.sec * 10**9 + m.clock.nanosec),
+                             Qos(reliable=False, depth=10))
+    node.create_subscription("tf2_msgs/msg/TFMessage", "/tf", lambda m: got["tf"].append(m), Qos(depth=100))
+    node.create_subscription("tf2_msgs/msg/TFMessage", "/tf_static", lambda m: got["tf_static"].append(m), LATCHED)
+    node.create_subscription("nav_msgs/msg/Odometry", "/odom", lambda m: got["odom"].append(m), Qos(depth=100))
+    node.create_subscription("sensor_msgs/msg/LaserScan", "/scan", lambda m: got["scan"].append(m), Qos(depth=100))
+    node.create_subscription("std_msgs/msg/Bool", "/collision", lambda m: got["collision"].append(bool(m.data)), DEFAULT)
+    pub_map = node.create_publisher("nav_msgs/msg/OccupancyGrid", "/map", LATCHED)
+    pub_pose = node.create_publisher("geometry_msgs/msg/PoseWithCovarianceStamped", "/initialpose", DEFAULT)
+    pub_cmd = node.create_publisher("geometry_msgs/msg/Twist", "/cmd_vel", DEFAULT)
+    make = node.new_message
+    assert node.spin_until(lambda: pub_cmd.subscription_count() and pub_pose.subscription_count() and got["clock"], 120)
+    grid = box()
+    info = make("nav_msgs/msg/MapMetaData", resolution=1.0, width=30, height=30, origin=conversions.pose(make, 0.0, 0.0))
+    pub_map.publish(make("nav_msgs/msg/OccupancyGrid", header=conversions.header(make, node.now_ns()), info=info,
+                         data=np.where(grid, 100, 0).astype(np.int8).ravel()))
+    pub_pose.publish(make("geometry_msgs/msg/PoseWithCovarianceStamped", header=conversions.header(make, node.now_ns()),
+                          pose=make("geometry_msgs/msg/PoseWithCovariance", pose=conversions.pose(make, 26.0, 15.0))))
+    assert node.spin_until(lambda: any(abs(m.pose.pose.position.x - 26.0) < 1e-9 for m in got["odom"]), 60), procs.logs()
+    # full speed ahead, 3 m before the east wall: the body stops there and the flag goes up
+    pub_cmd.publish(make("geometry_msgs/msg/Twist", linear=make("geometry_msgs/msg/Vector3", x=0.8)))
+    hit = lambda: got["collision"] and got["collision"][-1] and got["odom"][-1].pose.pose.position.x > 27  # noqa: E731
+    assert node.spin_until(hit, 120), procs.logs()
+    node.spin_until(lambda: False, 0.5)
+    last = got["odom"][-1]
+    assert 28.0 < last.pose.pose.position.x < 29.0 and last.twist.twist.linear.x == 0.0
+    assert last.header.frame_id == "odom" and last.child_frame_id == "base_link"
+    # the clock runs forward; TF carries map->odom (identity) and odom->base_link (the odometry pose)
+    assert all(b >= a for a, b in zip(got["clock"], got["clock"][1:])) and got["clock"][-1] > got["clock"][0]
+    frames = {(t.header.frame_id, t.child_frame_id) for m in got["tf"] for t in m.transforms}
+    assert frames == {("map", "odom"), ("odom", "base_link")}
+    (static,) = got["tf_static"][:1]
+    assert [(t.header.frame_id, t.child_frame_id) for t in static.transforms] == [("base_link", "base_scan")]
+    scan = got["scan"][-1]
+    ranges = np.asarray(scan.ranges, dtype=float)
+    assert len(ranges) == 181 and scan.range_max == pytest.approx(10.0) and scan.header.frame_id == "base_scan"
+    assert np.isinf(ranges).any() and np.isfinite(ranges).any()  # facing the wall: returns ahead, none behind
+    assert np.nanmin(ranges) < 0.5  # the wall just ahead of the laser
+    stamps = [conversions.stamp_ns(m.header) for m in got["odom"]]
+    assert all(b > a for a, b in zip(stamps, stamps[1:])), "odometry stamps must increase"
+
+
+def test_the_nd_stack_behind_the_adapter_gives_the_in_process_verdicts(graph):
+    """safety_dist 0.3 m makes our ND robot fail on two refined maps (test/data/robot_nd_failures.json)."""
+    p = get_problem("robot", {"profile": "refined"})
+    procs, node = graph()
+    procs.start("world", "sim_nodes.robot_world", **LOCKSTEP)
+    procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True, **{"sim.safety_dist": FAILURES["safety_dist"]})
+    procs.start("adapter", "sim_nodes.sut_adapter", problem="robot", worker_id="sut", profile="refined",
+                stall_topic="/nd_driver/stall", settle_time=0.1, run_invalid=True)
+    driver = Driver(node, p)
+    driver.wait_matched()
+    walled = easy_robot_elements()
+    walled[44] = {"type": "horizontal", "size": 10, "position": 44}
+    walled[46] = {"type": "vertical", "size": 6, "position": 44}
+    scs = [p.parse(FAILURES["stall"]), p.parse({"problem": "robot", "elements": walled}), p.parse(FAILURES["loiter"]),
+           p.parse({"problem": "robot", "elements": easy_robot_elements()})]
+    t0 = time.monotonic()
+    driver.send("nd", scs)
+    got = driver.wait("nd", len(scs), 600)  # a safety net: the wait ends with the last result
+    assert all(got), procs.logs()
+    wall = time.monotonic() - t0
+    full = full_model_executor(p, safety_dist=FAILURES["safety_dist"], run_invalid=True)
+    for sc, res in zip(scs, got):
+        ref = full.execute(sc, seed=0)
+        assert (res.failure_kind, res.failed) == (ref.failure_kind, ref.failed), (res.detail, ref.detail)
+        if ref.failure_kind != "invalid_test":
+            # the very run of the full model fed what crosses the wire (float32 ranges and beam
+            # ends, the heading as a quaternion): step for step, to the bit; the stall flag takes
+            # its own topic, so the verdict may land a step later
+            with wire_emulation():
+                wire = full.execute(sc, seed=0)
+            assert wire.failure_kind == ref.failure_kind
+            n = min(len(res.trajectory), len(wire.trajectory))
+            assert n >= len(wire.trajectory) - 1 and np.array_equal(np.asarray(res.trajectory[:n]), wire.trajectory[:n])
+            assert float(res.metrics["time"]) == pytest.approx(wire.metrics["time"], abs=0.11)
+    assert [r.failure_kind for r in got] == ["stall", "invalid_test", "loiter", "none"]
+    assert "emergency_stop" in got[0].detail  # the stack's own stall flag, on /nd_driver/stall
+    print(f"nd stack through the adapter: {len(scs)} scenarios in {wall:.1f} s")
+
+
+def test_a_stack_campaign_logs_a_robot_bag(tmp_path, ros_domain):
+    from mcap.reader import make_reader
+
+    out = tmp_path / "run"
+    env = dict(os.environ, ROS_DOMAIN_ID=str(ros_domain))
+    env.pop("AMBIEGEN_TRANSPORT", None)
+    run = subprocess.run([sys.executable, "-m", "ambiegen_ros.cli", "campaign", "--problem", "robot", "--stack", "nd",
+                          "--evaluations", "20", "--seed", "1", "--out", str(out), "--json"],
+                         cwd=REPO, env=env, capture_output=True, text=True, timeout=900)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    summary = json.loads(run.stdout)
+    assert summary["stack"] == "nd" and not summary["unresolved"]
+    (mcap,) = out.glob("*.mcap")
+    counts: Counter = Counter()
+    qos: dict[str, str] = {}
+    scenario_ids, result_ids = set(), set()
+    with open(mcap, "rb") as f:
+        for _, channel, message in make_reader(f).iter_messages():
+            counts[channel.topic] += 1
+            qos[channel.topic] = channel.metadata.get("offered_qos_profiles", "")
+    from ambiegen_ros.nodes.replay import recorded_scenarios
+
+    rec = recorded_scenarios(mcap)
+    scenario_ids, result_ids = set(rec.scenarios), set(rec.outcomes)
+    assert scenario_ids and scenario_ids == result_ids, (scenario_ids, result_ids)
+    for topic in ("/map", "/initialpose", "/goal_pose", "/scan", "/odom", "/tf", "/tf_static", "/cmd_vel", "/plan"):
+        assert counts[topic] > 0, (topic, counts)
+    assert counts["/scan"] > 100 and counts["/cmd_vel"] > 100
+    assert "transient_local" in qos["/tf_static"] and "transient_local" in qos["/map"]
+    assert "volatile" in qos["/scan"]
+    # every verdict is the in-process full model's with the campaign's seed (the world's laser seed)
+    p = get_problem("robot", {"profile": "replication"})
+    full = full_model_executor(p)
+    for sid, sc in rec.scenarios.items():
+        ref = full.execute(p.parse(sc.to_dict()), seed=1)
+        assert rec.outcomes[sid].failure_kind == ref.failure_kind, (rec.outcomes[sid].detail, ref.detail)
+    assert math.isfinite(summary["elapsed_s"])
