@@ -100,13 +100,17 @@ class Nav2Client:  # pragma: no cover - needs rclpy and nav2_msgs (test/real_ros
             handle.get_result_async().add_done_callback(on_result)
 
         def on_result(future):
-            if goal_number != self.goals:
-                return
             wrapped = future.result()
             result = getattr(wrapped, "result", None)
-            self.result = {"status": STATUS_NAMES.get(int(wrapped.status), f"status {int(wrapped.status)}"),
-                           "error_code": int(getattr(result, "error_code", 0) or 0),
-                           "error_msg": str(getattr(result, "error_msg", "") or "")}
+            outcome = {"status": STATUS_NAMES.get(int(wrapped.status), f"status {int(wrapped.status)}"),
+                       "error_code": int(getattr(result, "error_code", 0) or 0),
+                       "error_msg": str(getattr(result, "error_msg", "") or "")}
+            late = goal_number != self.goals  # its scenario was decided already: logged, not recorded
+            self.logger.info(f"navigate_to_pose finished: {outcome['status']} (error {outcome['error_code']}"
+                             f"{': ' + outcome['error_msg'] if outcome['error_msg'] else ''})"
+                             + (" after its scenario was decided" if late else ""))
+            if not late:
+                self.result = outcome
 
         self.action.send_goal_async(request).add_done_callback(on_response)
 

@@ -13,13 +13,16 @@ def wants_help(argv: list[str] | None = None) -> bool:
 
 
 def run_node(
-    label: str, make: Callable[[], Any], finish: Callable[[Any], int | None] | None = None, doc: str | None = None
+    label: str, make: Callable[[], Any], finish: Callable[[Any], int | None] | None = None, doc: str | None = None,
+    drain: bool = False,
 ) -> int:
     """The shared ``main()`` of every node: build it, spin until SIGINT/SIGTERM or done, clean up.
 
     ``make`` returns an object with a ``node``; a bad parameter or config, or a missing or too old
-    library (``deps``), exits with status 2 and one line. ``finish`` runs before the node shuts
-    down (close files, stop threads) and may return the exit code.
+    library (``deps``), exits with status 2 and one line. After the spin the node lets its
+    messages arrive (``Node.finish_io``: with ``drain``, a recorder first takes what is still on
+    its way; every node waits until its reliable samples are acknowledged), then ``finish`` runs
+    (close files, stop threads; it may return the exit code) and the node shuts down.
     """
     if doc and wants_help():
         print(f"usage: {label} [--ros-args -p NAME:=VALUE ... | --params-file FILE.yaml]\n")
@@ -41,6 +44,7 @@ def run_node(
     code: int | None = 0
     try:
         obj.node.spin()
+        obj.node.finish_io(drain=drain)
     finally:
         if finish is not None:
             code = finish(obj)

@@ -3,7 +3,8 @@
 The file follows the ROS 2 MCAP profile (schemas, ``offered_qos_profiles``, type hashes,
 summary), so ``ros2 bag info/play`` and Foxglove open it. The run's config, seed and versions are
 stored as MCAP metadata when the latched ``RunConfig`` arrives. The log is flushed every
-``flush_period`` seconds and finalised on SIGINT/SIGTERM; after a SIGKILL,
+``flush_period`` seconds and finalised on SIGINT/SIGTERM, once what was still on its way has
+been taken (until nothing came for 0.5 s, 3 s at most; ``Node.finish_io``); after a SIGKILL,
 ``ambiegen recover FILE.mcap`` rebuilds a valid file with everything up to the last flush.
 
 Parameters: ``output`` (file path; default ``ambiegen_<random>_<utc time>.mcap``; the launch file
@@ -148,7 +149,7 @@ class Recorder:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run_node("recorder", lambda: Recorder(argv), Recorder.close, doc=__doc__)
+    return run_node("recorder", lambda: Recorder(argv), Recorder.close, doc=__doc__, drain=True)
 
 
 if __name__ == "__main__":

@@ -105,24 +105,28 @@ def _thermostat(problem, scenario, outcome, ax) -> None:
     ax.grid(True, alpha=0.3)
 
 
-def plot_execution(problem: Any, scenario: Any, outcome: Any, ax=None):
-    """Draw one executed scenario; returns the axes (a new figure when ``ax`` is None)."""
+def plot_execution(problem: Any, scenario: Any, outcome: Any, ax=None, plan: Any = None):
+    """Draw one executed scenario; returns the axes (a new figure when ``ax`` is None). ``plan``
+    ((K, 2) m, robot): the path the system under test itself planned (Nav2's ``/plan``)."""
     if ax is None:
         figsize = (10, 3.8) if problem.name == "thermostat" else (7, 6.5)
         _, ax = plt.subplots(figsize=figsize, layout="constrained")
     draw = {"robot": _robot, "vehicle": _vehicle, "thermostat": _thermostat}[problem.name]
     draw(problem, scenario, outcome, ax)
+    if plan is not None and len(plan):
+        ax.plot(np.asarray(plan)[:, 0], np.asarray(plan)[:, 1], "-", color="tab:orange", lw=1.5, zorder=5,
+                label="its plan")
     _mark_failure(ax, outcome)
     ax.set_title(_title(problem, outcome), fontsize=9)
     ax.legend(loc="best", fontsize=7, framealpha=0.8)
     return ax
 
 
-def save_execution_plot(problem: Any, scenario: Any, outcome: Any, path) -> Any:
+def save_execution_plot(problem: Any, scenario: Any, outcome: Any, path, plan: Any = None) -> Any:
     """Write the picture to ``path`` (PNG); returns the path."""
     from pathlib import Path
 
-    ax = plot_execution(problem, scenario, outcome)
+    ax = plot_execution(problem, scenario, outcome, plan=plan)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     ax.figure.savefig(path, dpi=110)

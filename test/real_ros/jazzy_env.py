@@ -44,7 +44,7 @@ DEFAULT_SETUP = "/opt/ros/jazzy/setup.bash"
 VENV_SITE = sysconfig.get_paths()["purelib"]
 RMWS = ("rmw_cyclonedds_cpp", "rmw_fastrtps_cpp")
 EXECUTABLES = ("ambiegen", "generator", "recorder", "replay", "robot_sim", "car_sim", "thermostat_sim",
-               "sut_adapter", "external_sim")
+               "sut_adapter", "external_sim", "robot_world", "nd_driver")
 # variables of a sourced ROS environment: never leak them into venv-side processes
 ROS_VARS = ("PYTHONPATH", "AMENT_PREFIX_PATH", "CMAKE_PREFIX_PATH", "COLCON_PREFIX_PATH", "LD_LIBRARY_PATH",
             "ROS_DISTRO", "ROS_VERSION", "ROS_PYTHON_VERSION", "RMW_IMPLEMENTATION", "ROS_LOCALHOST_ONLY",
@@ -57,7 +57,7 @@ from ament_index_python.packages import get_packages_with_prefixes
 pkgs = get_packages_with_prefixes()
 print(json.dumps({{"rclpy": rclpy.__file__, "python": list(sys.version_info[:2]), "executable": sys.executable,
                   "distro": __import__("os").environ.get("ROS_DISTRO", ""),
-                  "packages": sorted(p for p in pkgs if p.startswith(("rmw_", "nav2_msgs", "rosbag2_storage_mcap", "ros2bag", "sros2")))}}))
+                  "packages": sorted(p for p in pkgs if p.startswith(("rmw_", "nav2_", "dwb_", "rosbag2_storage_mcap", "ros2bag", "sros2")))}}))
 """
 
 

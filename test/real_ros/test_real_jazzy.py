@@ -335,8 +335,10 @@ def test_sut_adapter_nav2_action_mode_against_a_fake_navigate_to_pose(jazzy, wor
     g.ros("fake_nav2", f"{jazzy['executable']} {HERE / 'fake_nav2.py'} /fake_nav2/goal_pose", workspace, env)
     g.ros("external", f"ros2 run ambiegen_ros external_sim {ros_args(goal_topic='/fake_nav2/goal_pose', **common)}",
           workspace, env)
-    g.ros("adapter", f"ros2 run ambiegen_ros sut_adapter {ros_args(worker_id='sut', goal_mode='action', **common)}",
-          workspace, env)
+    # the fake is no lifecycle node and has no costmaps: no readiness check of those, nothing to clear
+    g.ros("adapter", "ros2 run ambiegen_ros sut_adapter " + ros_args(
+        worker_id="sut", goal_mode="action", nav2_lifecycle_nodes="''", nav2_clear_costmaps="''", **common),
+        workspace, env)
     g.wait_for("fake_nav2", "navigate_to_pose ready", 60)
     for key, value in venv_env(domain).items():
         monkeypatch.setenv(key, value)
@@ -362,4 +364,5 @@ def test_sut_adapter_nav2_action_mode_against_a_fake_navigate_to_pose(jazzy, wor
     # the goal the server received is the scenario's goal, in the map frame
     assert (float(goals[0][0]), float(goals[0][1]), goals[0][2]) == (pytest.approx(goal.x, abs=1e-6),
                                                                       pytest.approx(goal.y, abs=1e-6), "map")
-    g.wait_for("adapter", "navigate_to_pose finished with status 4", 30)  # 4 = SUCCEEDED
+    g.wait_for("adapter", "navigate_to_pose finished: succeeded", 30)
+    assert res.metrics["nav2_status"] in ("succeeded", "running (cancelled: the oracle decided first)")

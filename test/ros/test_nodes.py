@@ -566,6 +566,30 @@ def test_sigint_to_recorder_mid_run_leaves_a_valid_mcap(nodes_factory, test_node
     assert sum(c.msgcount for c in run["connections"].values()) == summ.statistics.message_count
 
 
+def test_a_stopped_recorder_takes_what_was_already_on_its_way(nodes_factory, test_node, tmp_path, ros_domain):
+    """A burst of results, then SIGINT to the recorder the moment the last one is written: every
+    result published before the stop is in the log (the recorder drains its readers before it
+    closes, and the publisher waits for the recorder's acknowledgements before it goes)."""
+    from ambiegen_ros.ros.qos import Qos
+
+    nodes = nodes_factory(ros_domain)
+    mcap = tmp_path / "burst.mcap"
+    recorder = nodes.start("recorder", "ambiegen_ros.nodes.recorder", output=str(mcap), discover=False)
+    node = test_node("burst", ros_domain)
+    pub = node.create_publisher(topics.RESULT_TYPE, topics.RESULTS, Qos(reliable=True, depth=10, keep_all=True))
+    assert node.spin_until(lambda: pub.subscription_count() >= 1, 120), nodes.log("recorder")  # a safety net
+    make, burst = node.new_message, 3000
+    for i in range(burst):
+        pub.publish(make(topics.RESULT_TYPE, run_id="burst", scenario_id=i, worker="w", detail="x" * 200))
+    recorder.send_signal(signal.SIGINT)
+    node.finish_io(ack_s=60.0)  # this side: until the recorder acknowledged all (a safety net of a bound)
+    assert nodes.wait("recorder", 120) == 0, nodes.log("recorder")
+    with open(mcap, "rb") as fh:
+        ids = [get_registry().deserialize(m.data, topics.RESULT_TYPE).scenario_id
+               for _, ch, m in make_reader(fh).iter_messages() if ch.topic == topics.RESULTS]
+    assert sorted(ids) == list(range(burst)), f"{burst - len(set(ids))} of {burst} results lost"
+
+
 def test_sigkill_to_recorder_then_recover_keeps_everything_flushed(nodes_factory, test_node, tmp_path, ros_domain):
     domain = ros_domain
     nodes = nodes_factory(domain)

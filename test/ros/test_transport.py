@@ -325,7 +325,7 @@ def _fake_rclpy(monkeypatch):
     class ExternalShutdownException(Exception):
         pass
 
-    state = {"ok": False, "init_args": None, "shutdowns": 0, "topics": {}}
+    state = {"ok": False, "init_args": None, "shutdowns": 0, "topics": {}, "acked_waits": 0, "signal_options": None}
 
     class QoSProfile:
         def __init__(self, *, history, depth, reliability, durability):
@@ -366,6 +366,10 @@ def _fake_rclpy(monkeypatch):
 
         def get_subscription_count(self):
             return len(state["topics"].get(self.topic_name, []))
+
+        def wait_for_all_acked(self, timeout):  # Jazzy: rclpy.duration.Duration -> bool
+            state["acked_waits"] += 1
+            return True
 
     class FakeNode:
         def __init__(self, name, namespace, overrides):
@@ -439,7 +443,7 @@ def _fake_rclpy(monkeypatch):
                     cb(m)
 
     def init(*, args=None, context=None, domain_id=None, signal_handler_options=None):
-        state["ok"], state["init_args"] = True, args
+        state["ok"], state["init_args"], state["signal_options"] = True, args, signal_handler_options
 
     def create_node(node_name, *, context=None, cli_args=None, namespace=None, use_global_arguments=True,
                     enable_rosout=True, start_parameter_services=True, parameter_overrides=None,
@@ -459,7 +463,11 @@ def _fake_rclpy(monkeypatch):
         "rosidl_runtime_py": pytypes.ModuleType("rosidl_runtime_py"),
         "rosidl_runtime_py.utilities": pytypes.ModuleType("rosidl_runtime_py.utilities"),
         "rclpy.serialization": pytypes.ModuleType("rclpy.serialization"),
+        "rclpy.signals": pytypes.ModuleType("rclpy.signals"), "rclpy.duration": pytypes.ModuleType("rclpy.duration"),
     }
+    mods["rclpy.signals"].SignalHandlerOptions = enum.Enum("SignalHandlerOptions", "NO SIGINT SIGTERM ALL")
+    mods["rclpy.duration"].Duration = lambda *, seconds=0, nanoseconds=0: pytypes.SimpleNamespace(
+        nanoseconds=int(seconds * 1e9) + nanoseconds)
     # the adapter subscribes raw and decodes itself (so its input guard sees sizes): the fake's "CDR"
     mods["rclpy.serialization"].deserialize_message = lambda data, cls: cls(
         data[4:].decode() if data.startswith(b"CDR:") else data.decode("latin-1"))
@@ -502,6 +510,11 @@ def test_rclpy_adapter_against_a_fake_jazzy_api(monkeypatch):
     node.request_shutdown()
     node.spin()  # returns at once: stop requested
     assert not node.ok()
+    # rclpy's own SIGINT handler would shut the context down with samples on their way: ours is used
+    assert state["signal_options"].name == "NO"
+    pub.publish(node.new_message(STRING, data="late"))
+    node.finish_io(drain=True, quiet_s=0.01, drain_s=1.0, ack_s=1.0)  # after a stop: still taken, and acked
+    assert got[-2:] == ["late", (b"CDR:late", True)] and state["acked_waits"] == 1  # the one (reliable) publisher
     node.shutdown()
     node.shutdown()
     assert state["shutdowns"] == 1 and not state["ok"]
@@ -640,6 +653,24 @@ def test_keep_all_reader_buffers_what_a_keep_last_reader_loses(dds_env, ros_doma
     node.spin_until(lambda: len(every) == n and last and last[-1] == str(n - 1), PATIENCE)
     assert every == [str(i) for i in range(n)]
     assert len(last) < n and last[-1] == str(n - 1)
+
+
+def test_a_stopped_node_still_takes_what_was_on_its_way(dds_env, ros_domain):
+    """After a stop (SIGINT), ``finish_io(drain=True)`` runs the callbacks of every sample that had
+    arrived (a recorder closing its log), and a publisher's ``finish_io`` returns once they are
+    acknowledged; without the drain, a stopped node takes nothing more."""
+    node = dds_env(ros_domain, "late_reader")
+    pub = node.create_publisher(STRING, "/late", Qos(reliable=True, depth=10, keep_all=True))
+    got: list[str] = []
+    node.create_subscription(STRING, "/late", lambda m: got.append(m.data), Qos(reliable=True, depth=10, keep_all=True))
+    assert node.wait_for_subscribers(pub, 1, PATIENCE)
+    for i in range(300):  # nobody takes meanwhile: the node is not spinning
+        pub.publish(node.new_message(STRING, data=str(i)))
+    node.request_shutdown()
+    node.spin_once(0.0)
+    assert got == []  # a stopped node no longer takes anything while it spins
+    node.finish_io(drain=True, quiet_s=0.2, drain_s=PATIENCE, ack_s=PATIENCE)
+    assert got == [str(i) for i in range(300)]
 
 
 def test_every_known_message_type_round_trips(dds_env, ros_domain):

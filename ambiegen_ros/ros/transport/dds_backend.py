@@ -20,7 +20,6 @@ Why it looks the way it does:
 from __future__ import annotations
 
 import os
-import signal
 import threading
 import time
 import weakref
@@ -28,6 +27,7 @@ from typing import Any, Callable, Sequence
 
 from ambiegen_ros.ros.qos import Qos
 
+from . import signals
 from .base import (EndpointInfo, Node, Publisher, Subscription, Timer, TransportError)
 from .discovery import check_peers_resolve, cyclone_fragment, options_from_env
 from .dds_wire import (IdlMirror, _types_module, dds_qos, dds_topic_to_ros,  # noqa: F401 (re-exported)
@@ -75,8 +75,6 @@ def unavailable_reason() -> str:
 _domains: dict[int, Any] = {}
 _domains_lock = threading.Lock()
 _live_nodes: "weakref.WeakSet[DdsNode]" = weakref.WeakSet()
-_prev_handlers: dict[int, Any] = {}
-_signal_count = 0
 
 
 def domain_config() -> str:
@@ -149,38 +147,6 @@ def _ensure_domain(domain_id: int, max_sample_bytes: int | None = None) -> None:
             _domains[domain_id] = Domain(domain_id, cfg) if cfg else None
         except Exception as exc:
             raise TransportError(f"cannot create DDS domain {domain_id} from config {cfg!r}: {exc}") from exc
-
-
-def _on_signal(signum, frame) -> None:
-    global _signal_count
-    _signal_count += 1
-    if _signal_count > 1 and signum == signal.SIGINT:
-        raise KeyboardInterrupt  # a second Ctrl-C escapes a stuck callback
-    for node in list(_live_nodes):
-        node._request_stop()
-
-
-def _install_signal_handlers() -> None:
-    if threading.current_thread() is not threading.main_thread() or _prev_handlers:
-        return
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        try:
-            _prev_handlers[sig] = signal.signal(sig, _on_signal)
-        except (ValueError, OSError):  # pragma: no cover - embedded interpreters
-            pass
-
-
-def _restore_signal_handlers() -> None:
-    global _signal_count
-    if threading.current_thread() is not threading.main_thread():
-        return
-    for sig, handler in list(_prev_handlers.items()):
-        try:
-            signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
-        except (ValueError, OSError):  # pragma: no cover
-            pass
-    _prev_handlers.clear()
-    _signal_count = 0
 
 
 # ---------------------------------------------------------------------------------------------
@@ -327,7 +293,7 @@ class DdsNode(Node):
         self._endpoint_nodes: dict[bytes, tuple[str, str]] = {}
         self._announce_graph()
         _live_nodes.add(self)
-        _install_signal_handlers()
+        signals.register(self, self._request_stop)
 
     # -- ROS graph announcement --------------------------------------------------------------------
     def _announce_graph(self) -> None:
@@ -558,6 +524,27 @@ class DdsNode(Node):
         except KeyboardInterrupt:
             self._request_stop()
 
+    def _take_pending(self, quiet_s: float, deadline: float) -> None:
+        if self._closed:
+            return
+        self._guard.set(False)  # a stop set it: the wait set would never block
+        last = time.monotonic()
+        while True:
+            done = sum(sub._drain() for sub in list(self._subs))
+            now = time.monotonic()
+            if done:
+                last = now
+            if now - last >= quiet_s or now >= deadline:
+                return
+            self._ws.wait(int(min(0.05, quiet_s, deadline - now) * 1e9))
+
+    def _wait_acknowledged(self, deadline: float) -> None:
+        for pub in list(self._pubs):
+            left = deadline - time.monotonic()
+            if pub._writer is None or not pub.qos.reliable or left <= 0:
+                continue
+            pub._writer.wait_for_acks(int(left * 1e9))
+
     def shutdown(self) -> None:
         if self._closed:
             return
@@ -581,8 +568,7 @@ class DdsNode(Node):
         except Exception:  # pragma: no cover
             pass
         _live_nodes.discard(self)
-        if not _live_nodes:
-            _restore_signal_handlers()
+        signals.unregister(self)
 
 
 _mirrors: dict[int, IdlMirror] = {}

@@ -13,6 +13,7 @@ from typing import Any, Callable, Sequence
 
 from ambiegen_ros.ros.qos import Qos
 
+from . import signals
 from .base import BackendUnavailable, EndpointInfo, Node, Publisher, Subscription, Timer
 from .discovery import options_from_env
 
@@ -165,7 +166,11 @@ class RclpyNode(Node):
             # the RMW applies ROS_AUTOMATIC_DISCOVERY_RANGE / ROS_STATIC_PEERS itself; rcl would
             # turn a misspelt range into LOCALHOST with a warning, we refuse it as the DDS backend does
             options_from_env()
-            rclpy.init(args=self._argv)  # Jazzy: returns None; installs SIGINT/SIGTERM handlers
+            from rclpy.signals import SignalHandlerOptions
+
+            # without rclpy's SIGINT/SIGTERM handlers (they would shut the context down with
+            # samples still on their way): ours stop the spin and leave the node usable (signals.py)
+            rclpy.init(args=self._argv, signal_handler_options=SignalHandlerOptions.NO)
             cli_args = None
         else:  # context exists (second node in the process): pass this node's own ROS args
             cli_args = self._argv[1:] if len(self._argv) > 1 else None
@@ -181,7 +186,9 @@ class RclpyNode(Node):
         self._stopped = False
         self._closed = False
         self._msg_classes: dict[str, Any] = {}
+        self._publishers: list[Any] = []
         _live += 1
+        signals.register(self, self.request_shutdown)
 
     # -- parameters ------------------------------------------------------------------------------
     def _parameter_source(self, name, default, description):
@@ -208,6 +215,7 @@ class RclpyNode(Node):
 
     def create_publisher(self, typename: str, topic: str, qos: Qos) -> Publisher:
         pub = self._node.create_publisher(self._msg_class(typename), topic, to_rclpy_qos(qos))
+        self._publishers.append((qos, pub))
         return _RclpyPublisher(pub, typename, pub.topic_name, qos)
 
     def create_subscription(self, typename: str, topic: str, callback: Callable[..., None],
@@ -297,11 +305,32 @@ class RclpyNode(Node):
     def request_shutdown(self) -> None:
         self._stopped = True
 
+    def _take_pending(self, quiet_s: float, deadline: float) -> None:
+        import rclpy
+
+        last, seen = time.monotonic(), self.input_stats()["taken"]
+        while rclpy.ok() and not self._closed:
+            self._executor.spin_once(timeout_sec=min(0.05, quiet_s))
+            now, taken = time.monotonic(), self.input_stats()["taken"]
+            if taken != seen:
+                last, seen = now, taken
+            if now - last >= quiet_s or now >= deadline:
+                return
+
+    def _wait_acknowledged(self, deadline: float) -> None:
+        from rclpy.duration import Duration
+
+        for qos, pub in self._publishers:
+            left = deadline - time.monotonic()
+            if qos.reliable and left > 0:
+                pub.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9)))
+
     def shutdown(self) -> None:
         global _live
         if self._closed:
             return
         self._closed = True
+        signals.unregister(self)
         self._log_input_stats()
         import rclpy
         try:
