@@ -237,11 +237,8 @@ class Generator:
             f"{r.invalid} invalid"
         )
         if self.exit_when_done:
-            # let reliable writers deliver the last samples before the process ends
-            deadline = time.monotonic() + 1.0
-            while time.monotonic() < deadline and self.node.ok():
-                self.node.spin_once(0.05)
-            self.node.shutdown()
+            # the spin ends; run_node then waits until the last samples are acknowledged (finish_io)
+            self.node.request_shutdown()
 
     def publish_status(self) -> None:
         s = self.settings

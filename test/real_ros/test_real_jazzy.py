@@ -262,6 +262,28 @@ def test_ambiegen_campaign_under_ros2_run_on_rclpy(problem, workspace, tmp_path,
     answered(next(out.glob("*.mcap")), summary["run_id"])
 
 
+def test_nd_stack_campaign_under_ros2_run_on_rclpy(workspace, tmp_path, ros_domain):
+    """Issue 19's done-when on rclpy: `ambiegen campaign --problem robot --stack nd --evaluations 20
+    --seed 1`, every node (robot_world, nd_driver, sut_adapter, generator, recorder) on rclpy; every
+    scenario answered, the world's topics in the log (counted by rosbags)."""
+    out = tmp_path / "nd"
+    cmd = (f"ros2 run ambiegen_ros ambiegen campaign --problem robot --stack nd --evaluations 20 --seed 1 "
+           f"--domain-id {ros_domain} --discovery-range SUBNET --out {out} --json --timeout 600")
+    run = ros_run(cmd, workspace, env=ros_env(ros_domain), timeout=700)
+    logs = "\n".join(f"--- {p.name}\n{p.read_text(errors='replace')[-1500:]}" for p in (out / "logs").glob("*.log"))
+    assert run.returncode == 0, f"{run.stdout[-2000:]}\n{run.stderr[-2000:]}\n{logs}"
+    summary = json.loads(run.stdout[run.stdout.index("{"):])
+    assert all(code == 0 for code in summary["exit_codes"].values()), summary["exit_codes"]
+    mcap = next(out.glob("*.mcap"))
+    answered(mcap, summary["run_id"])
+    counts = rosbags_counts(mcap)
+    for topic in ("/scan", "/odom", "/tf", "/tf_static", "/cmd_vel", "/plan", "/map"):
+        assert counts.get(topic, 0) > 0, (topic, counts)
+    with open(mcap, "rb") as fh:
+        meta = {m.name: m.metadata for m in make_reader(fh).iter_metadata()}
+    assert meta["ambiegen_recorder"]["middleware"].startswith("rclpy"), meta
+
+
 # --- mixed graphs -------------------------------------------------------------------------------
 @pytest.mark.parametrize("rmw", RMWS)
 def test_rclpy_generator_and_recorder_with_dds_backend_workers(rmw, jazzy, workspace, graph, tmp_path, ros_domain):

@@ -320,6 +320,8 @@ class RclpyNode(Node):
     def _wait_acknowledged(self, deadline: float) -> None:
         from rclpy.duration import Duration
 
+        if self._closed:
+            return
         for qos, pub in self._publishers:
             left = deadline - time.monotonic()
             if qos.reliable and left > 0:
