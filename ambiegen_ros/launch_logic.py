@@ -136,7 +136,7 @@ NAV2_LAUNCH_ARGUMENTS: dict[str, tuple[str, str]] = {
     **{k: v for k, v in LAUNCH_ARGUMENTS.items() if k not in ("problem", "workers", "keep_workers")},
     "params_file": ("", "Nav2 parameters ('' = the package's config/nav2/pioneer_navfn_dwb.yaml)"),
     "time_scale": ("1.0", "simulated seconds per wall second; Nav2's rates in the params file are multiplied by it"),
-    "map_upsample": ("10", "each 1 m map cell goes to Nav2 as k x k cells (10 = 0.1 m)"),
+    "map_upsample": ("5", "each 1 m map cell goes to Nav2 as k x k cells (5 = 0.2 m)"),
     "result_timeout": ("0.0", "seconds the generator waits for a scenario (0 = 2 x 300 s / time_scale + 60)"),
 }
 NAV2_NODES = (  # (node name, package, executable): the minimum Nav2 for navigate_to_pose with NavFn + DWB

@@ -39,7 +39,7 @@ for extra in (REPO, REPO / "test", REPO / "test" / "real_ros"):
 import numpy as np  # noqa: E402
 
 RESULTS = REPO / "docs" / "results" / "nav2"
-RUNS = RESULTS / "runs.jsonl"
+RUNS = RESULTS / "runs.jsonl"  # --results moves it (a trial run), the pictures and README stay here
 
 
 def scenario_key(scenario: dict) -> str:
@@ -99,7 +99,7 @@ def run_batch(args) -> int:
     maps = pick_maps(args.maps, args.count, args.profile, args.seed)
     done = done_keys(args.label, args.time_scale)
     todo = [sc for sc in maps if scenario_key(sc.to_dict()) not in done]
-    print(f"{len(maps)} maps, {len(maps) - len(todo)} already in {RUNS.relative_to(REPO)}; running {len(todo)}")
+    print(f"{len(maps)} maps, {len(maps) - len(todo)} already in {RUNS}; running {len(todo)}")
     if not todo:
         return 0
     import yaml
@@ -115,16 +115,16 @@ def run_batch(args) -> int:
     ros = je.ros_env(domain)
     logs = Path(tempfile.mkdtemp(prefix=f"nav2_{args.label}_"))
     graph = je.Graph(logs)
-    py = info["executable"]
-    ours = lambda module, **p: f"env PYTHONPATH=\"$PYTHONPATH:{REPO}\" {py} -m {module} {je.ros_args(**p)}"  # noqa: E731
-    graph.ros("world", ours("sim_nodes.robot_world", time_scale=args.time_scale, seed=args.seed,
-                            collision_topic="/collision"), None, ros)
+    install = je.working_tree_install(logs / "ws")  # rclpy needs ambiegen_msgs built by colcon
+    ours = lambda executable, **p: f"ros2 run ambiegen_ros {executable} {je.ros_args(**p)}"  # noqa: E731
+    graph.ros("world", ours("robot_world", time_scale=args.time_scale, seed=args.seed, collision_topic="/collision"),
+              install, ros)
     for name, package, executable in launch_logic.NAV2_NODES:
         graph.ros(name, f"ros2 run {package} {executable} --ros-args --params-file {scaled} -r __node:={name}",
-                  None, ros)
-    graph.ros("adapter", ours("sim_nodes.sut_adapter", problem="robot", worker_id="nav2", goal_mode="action",
+                  install, ros)
+    graph.ros("adapter", ours("sut_adapter", problem="robot", worker_id="nav2", goal_mode="action",
                               time_scale=args.time_scale, collision_topic="/collision", map_upsample=args.map_upsample,
-                              settle_time=1.0, start_timeout=120.0, profile=args.profile), None, ros)
+                              settle_time=1.0, start_timeout=120.0, profile=args.profile), install, ros)
     graph.venv("recorder", "ambiegen_ros.nodes.recorder", {"output": str(mcap),
                                                           "extra_topics": ",".join(launch_logic.NAV2_TOPICS)},
                je.venv_env(domain))
@@ -135,7 +135,7 @@ def run_batch(args) -> int:
     print(f"logs in {logs}; bag {mcap}")
     try:
         driver = Driver(node, p)
-        driver.wait_matched(timeout=300)
+        driver.wait_matched(count=2, timeout=300)  # the adapter and the recorder
         for i, sc in enumerate(todo):
             run_id = f"{args.label}-{stamp}-{i}"
             t0, w0 = time.monotonic(), time.time_ns()
@@ -155,7 +155,7 @@ def run_batch(args) -> int:
                    "failure_point": list(res.failure_point) if res.failure_point is not None else None,
                    "trajectory_every_10": traj, "mcap": str(mcap), "wall_start_ns": w0, "wall_end_ns": time.time_ns(),
                    "when": datetime.now(timezone.utc).isoformat(timespec="seconds"), "versions": versions()}
-            RESULTS.mkdir(parents=True, exist_ok=True)
+            RUNS.parent.mkdir(parents=True, exist_ok=True)
             with open(RUNS, "a") as fh:  # appended, never rewritten
                 fh.write(json.dumps(row) + "\n")
             print(f"map {i}: {res.failure_kind} ({res.detail}); Nav2 {m.get('nav2_status')} "
@@ -224,12 +224,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=3)
     ap.add_argument("--label", default="random-refined")
     ap.add_argument("--time-scale", type=float, default=1.0)
-    ap.add_argument("--map-upsample", type=int, default=10)
+    ap.add_argument("--map-upsample", type=int, default=5)
     ap.add_argument("--params-file", default=str(REPO / "config" / "nav2" / "pioneer_navfn_dwb.yaml"))
     ap.add_argument("--mcap-dir", default="~/nav2-bags")
     ap.add_argument("--domain-id", type=int, default=61)
     ap.add_argument("--report", action="store_true")
+    ap.add_argument("--results", default="", help="the JSONL file appended to (default: the committed one)")
     args = ap.parse_args(argv)
+    if args.results:
+        globals()["RUNS"] = Path(args.results).resolve()
     return report(args) if args.report else run_batch(args)
 
 

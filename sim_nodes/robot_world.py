@@ -13,7 +13,8 @@ In:
 Out (stamps are simulated time):
 * ``clock_topic`` (``rosgraph_msgs/Clock``, best effort, ``clock_rate`` Hz of wall time; '' = none);
 * ``/tf``: ``map_frame -> odom_frame`` (identity) and ``odom_frame -> base_frame`` (ground truth)
-  every step; ``/tf_static``: ``base_frame -> scan_frame`` (the laser sits on the rotation centre);
+  every step, also before the first map (the robot at the origin, or at the last initial pose:
+  Nav2's costmaps wait for this transform before they activate); ``/tf_static``: ``base_frame -> scan_frame`` (the laser sits on the rotation centre);
 * ``odom_topic`` (``nav_msgs/Odometry``, pose and twist) every step;
 * ``scan_topic`` (``sensor_msgs/LaserScan``) every ``1 / scan_rate`` simulated seconds: ``sim.beams``
   beams over ``sim.fov_deg``, ``sim.laser_range`` m, Gaussian noise ``sim.laser_noise`` m seeded
@@ -174,10 +175,9 @@ class RobotWorldNode:
             if not w.can_step:
                 return
             w.step()
-            if w.ready:
-                self._publish_state(scan=w.scan_due)
-                if w.lockstep and w.awaiting:
-                    return
+            self._publish_state(scan=w.scan_due)  # before any map too: a stack waits for TF to activate
+            if w.lockstep and w.awaiting:
+                return
 
     def _stamp(self) -> int:
         return self.start_ns + int(round(self.world.k * self.cfg.dt * 1e9))
@@ -192,12 +192,12 @@ class RobotWorldNode:
         self.pub_tf.publish(make("tf2_msgs/msg/TFMessage", transforms=[
             conversions.transform(make, stamp, f["map"], f["odom"]),
             conversions.transform(make, stamp, f["odom"], f["base"], x, y, yaw)]))
-        if scan:
+        if scan and w.ready:
             self.last_scan_msg = conversions.laser_scan(make, stamp, f["scan"], self.angles[0], self.angles[-1], w.scan(),
                                                         self.cfg.laser_range, self.scan_period)
             self.pub_scan.publish(self.last_scan_msg)
             self.last_scan_wall, self.scan_stamp = time.monotonic(), stamp
-        if self.pub_collision is not None and (scan or w.contact != self.last_collision):
+        if w.ready and self.pub_collision is not None and (scan or w.contact != self.last_collision):
             self.pub_collision.publish(make("std_msgs/msg/Bool", data=bool(w.contact)))
             self.last_collision = w.contact
 

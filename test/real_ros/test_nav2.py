@@ -60,7 +60,7 @@ def start_nav2(g, workspace: Path, env: dict, tmp_path: Path, config: Path, mcap
               workspace, env)
     g.ros("adapter", "ros2 run ambiegen_ros sut_adapter " + ros_args(
         problem="robot", profile="refined", config_file=config, worker_id="nav2", goal_mode="action",
-        time_scale=TIME_SCALE, collision_topic="/collision", map_upsample=10, settle_time=1.0, start_timeout=120.0,
+        time_scale=TIME_SCALE, collision_topic="/collision", map_upsample=5, settle_time=1.0, start_timeout=120.0,
         min_result_subscribers=2), workspace, env)
 
 
@@ -93,7 +93,7 @@ def test_nav2_drives_ten_maps_with_every_verdict_in_the_log(jazzy, workspace, gr
     node = create_node("nav2_test_driver", argv=[])
     try:
         driver = Driver(node, problem)
-        driver.wait_matched(timeout=300)
+        driver.wait_matched(count=2, timeout=300)  # the adapter and the recorder
         driver.send("nav2", scenarios)
         got = driver.wait("nav2", len(scenarios), 60 * len(scenarios) + 300)  # a safety net
     finally:
