@@ -194,7 +194,7 @@ def report(args) -> int:
         hours = sum(r["wall_s"] for r in batch) / 3600.0
         kinds = ", ".join(f"{kd} {n}" for kd, n in Counter(r["failure_kind"] for r in batch).most_common())
         nav2 = ", ".join(f"{s} {n}" for s, n in Counter(f"{r['nav2_status']}"
-                                                         + (f" ({r['nav2_error_code']})" if r["nav2_error_code"] else "")
+                                                         + (f" ({r['nav2_error_code']})" if int(r["nav2_error_code"] or 0) else "")
                                                          for r in batch).most_common())
         lines.append(f"| {label} | {k:g} | {len(batch)} | {len(failed)} | {len(failed) / len(batch):.0%} | "
                      f"{len(distinct)} | {kinds} | {nav2} | {len(failed) / hours if hours else 0:.1f} |")
