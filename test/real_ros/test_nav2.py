@@ -83,6 +83,9 @@ def test_nav2_drives_ten_maps_with_every_verdict_in_the_log(jazzy, workspace, gr
         monkeypatch.setenv(key, value)
     problem = get_problem("robot", {"profile": "refined", **SMALL})
     full = full_model_executor(problem)
+    if not TRAP.exists():  # a part of issue 19 not done yet: said, not skipped
+        pytest.fail(f"{TRAP.relative_to(REPO)} does not exist: no map that Nav2 fails has been found yet "
+                    "(bench/nav2_maps.py, docs/results/nav2/)")
     trap = problem.parse(json.loads(TRAP.read_text())["scenario"])
     scenarios = [problem.parse({"problem": "robot", "elements": easy_robot_elements()}), trap]
     rng = np.random.default_rng(5)

@@ -140,17 +140,23 @@ def test_ros2_launch_campaign_ends_by_itself_with_every_scenario_answered(launch
     print(f"ros2 launch: {summary['scenarios_published']} scenarios in {launched['elapsed']:.0f} s (incl. launch start-up)")
 
 
+def launch_on_fast_dds(workspace: Path, out: Path, domain: int, timeout: float, **args) -> Path:
+    """``ros2 launch ambiegen_ros campaign.launch.py`` with ``args`` on rmw_fastrtps_cpp; its log."""
+    cmd = "ros2 launch ambiegen_ros campaign.launch.py " + " ".join(
+        shlex.quote(f"{k}:={v}") for k, v in {**args, "output_dir": str(out)}.items())
+    run = ros_run(cmd, workspace, env=ros_env(domain, "rmw_fastrtps_cpp"), timeout=timeout, cwd=out)
+    assert run.returncode == 0, f"{run.stdout[-4000:]}\n{run.stderr[-3000:]}"
+    (mcap,) = out.glob("*.mcap")
+    return mcap
+
+
 def test_ros2_launch_robot_campaign_on_fast_dds(jazzy, workspace, tmp_path, ros_domain):
     """What most Jazzy users run: the launch with RMW_IMPLEMENTATION=rmw_fastrtps_cpp (Jazzy's
     default RMW), on the robot problem, so OccupancyGrid maps and pose timelines cross Fast DDS and
     the suite runs on the full model."""
     require(jazzy, "rmw_fastrtps_cpp")
-    args = dict(problem="robot", algorithm="random", evaluations=30, workers=2, seed=4, mode="surrogate",
-                output_dir=str(tmp_path))
-    cmd = "ros2 launch ambiegen_ros campaign.launch.py " + " ".join(shlex.quote(f"{k}:={v}") for k, v in args.items())
-    run = ros_run(cmd, workspace, env=ros_env(ros_domain, "rmw_fastrtps_cpp"), timeout=300, cwd=tmp_path)
-    assert run.returncode == 0, f"{run.stdout[-4000:]}\n{run.stderr[-3000:]}"
-    (mcap,) = tmp_path.glob("*.mcap")
+    mcap = launch_on_fast_dds(workspace, tmp_path, ros_domain, 300, problem="robot", algorithm="random",
+                              evaluations=30, workers=2, seed=4, mode="surrogate")
     summary = answered(mcap)
     assert summary["final_state"] == "done"
     assert len(set(result_workers(mcap, summary["run_id"]).values())) == 2
@@ -166,12 +172,8 @@ def test_a_fast_dds_launch_of_2000_evaluations_loses_nothing(jazzy, workspace, t
     evaluation in-the-loop thermostat campaign (1958 of 2000): nodes ended with samples still in
     flight. Every scenario and result must now be in the finalised log, counted by rosbags."""
     require(jazzy, "rmw_fastrtps_cpp")
-    args = dict(problem="thermostat", algorithm="ga", evaluations=2000, workers=2, seed=11, mode="in_the_loop",
-                output_dir=str(tmp_path))
-    cmd = "ros2 launch ambiegen_ros campaign.launch.py " + " ".join(shlex.quote(f"{k}:={v}") for k, v in args.items())
-    run = ros_run(cmd, workspace, env=ros_env(ros_domain, "rmw_fastrtps_cpp"), timeout=900, cwd=tmp_path)
-    assert run.returncode == 0, f"{run.stdout[-4000:]}\n{run.stderr[-3000:]}"
-    (mcap,) = tmp_path.glob("*.mcap")
+    mcap = launch_on_fast_dds(workspace, tmp_path, ros_domain, 900, problem="thermostat", algorithm="ga",
+                              evaluations=2000, workers=2, seed=11, mode="in_the_loop")
     summary = answered(mcap)
     counts = rosbags_counts(mcap)
     assert counts[topics.scenarios("thermostat")] == counts[topics.RESULTS] == summary["scenarios_published"] == 2000, counts
