@@ -207,7 +207,7 @@ def report(args) -> int:
         if Path(r["mcap"]).exists():
             for _, _, t, msg in iter_messages(r["mcap"], {"/plan"}):
                 if r["wall_start_ns"] <= t <= r["wall_end_ns"]:
-                    plan = np.array([[q.pose.position.x, q.pose.position.y] for q in msg.poses]) / 1.0
+                    plan = np.array([[q.pose.position.x, q.pose.position.y] for q in msg.poses])
         path = save_execution_plot(problem, sc, out, RESULTS / f"failure_{i + 1}.png", plan=plan)
         lines.append(f"![{r['failure_kind']}]({path.name}) {r['label']}: {r['detail']}")
     (RESULTS / "README.md").write_text("\n".join(lines) + "\n")

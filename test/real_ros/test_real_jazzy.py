@@ -247,19 +247,27 @@ def test_replay_executes_the_launched_log_on_rclpy_workers(launched, workspace, 
 
 
 # --- short real runs of every executable, all on rclpy -------------------------------------------
+def campaign_on_rclpy(workspace: Path, out: Path, domain: int, timeout: float, flags: str) -> dict[str, Any]:
+    """``ros2 run ambiegen_ros ambiegen campaign FLAGS`` (every node on rclpy): its summary, every
+    node's exit code asserted 0 (the node logs shown otherwise)."""
+    cmd = (f"ros2 run ambiegen_ros ambiegen campaign {flags} --domain-id {domain} --discovery-range SUBNET "
+           f"--out {out} --json --timeout {timeout:g}")
+    run = ros_run(cmd, workspace, env=ros_env(domain), timeout=timeout + 100)
+    logs = "\n".join(f"--- {p.name}\n{p.read_text(errors='replace')[-1500:]}" for p in (out / "logs").glob("*.log"))
+    assert run.returncode == 0, f"{run.stdout[-2000:]}\n{run.stderr[-2000:]}\n{logs}"
+    summary = json.loads(run.stdout[run.stdout.index("{"):])
+    assert all(code == 0 for code in summary["exit_codes"].values()), summary["exit_codes"]
+    return summary
+
+
 @pytest.mark.parametrize("problem", ["vehicle", "robot"])
 def test_ambiegen_campaign_under_ros2_run_on_rclpy(problem, workspace, tmp_path, ros_domain):
     """`ros2 run ambiegen_ros ambiegen campaign`: its recorder, generator and sim worker run on the
     ROS python, hence on rclpy (AMBIEGEN_TRANSPORT=rclpy: no fall-back)."""
     out = tmp_path / "camp"
-    cmd = (f"ros2 run ambiegen_ros ambiegen campaign --problem {problem} --algorithm random --evaluations 6 "
-           f"--population 3 --workers 1 --sim-model surrogate --seed 2 --domain-id {ros_domain} --discovery-range SUBNET "
-           f"--out {out} --json --timeout 150")
-    run = ros_run(cmd, workspace, env=ros_env(ros_domain), timeout=240)
-    logs = "\n".join(f"--- {p.name}\n{p.read_text(errors='replace')[-1500:]}" for p in (out / "logs").glob("*.log"))
-    assert run.returncode == 0, f"{run.stdout[-2000:]}\n{run.stderr[-2000:]}\n{logs}"
-    summary = json.loads(run.stdout[run.stdout.index("{"):])
-    assert all(code == 0 for code in summary["exit_codes"].values()), summary["exit_codes"]
+    summary = campaign_on_rclpy(workspace, out, ros_domain, 150,
+                                f"--problem {problem} --algorithm random --evaluations 6 --population 3 --workers 1 "
+                                "--sim-model surrogate --seed 2")
     assert set(summary["exit_codes"]) == {"recorder", "generator", f"{problem}_sim_0"}
     answered(next(out.glob("*.mcap")), summary["run_id"])
 
@@ -269,13 +277,7 @@ def test_nd_stack_campaign_under_ros2_run_on_rclpy(workspace, tmp_path, ros_doma
     --seed 1`, every node (robot_world, nd_driver, sut_adapter, generator, recorder) on rclpy; every
     scenario answered, the world's topics in the log (counted by rosbags)."""
     out = tmp_path / "nd"
-    cmd = (f"ros2 run ambiegen_ros ambiegen campaign --problem robot --stack nd --evaluations 20 --seed 1 "
-           f"--domain-id {ros_domain} --discovery-range SUBNET --out {out} --json --timeout 600")
-    run = ros_run(cmd, workspace, env=ros_env(ros_domain), timeout=700)
-    logs = "\n".join(f"--- {p.name}\n{p.read_text(errors='replace')[-1500:]}" for p in (out / "logs").glob("*.log"))
-    assert run.returncode == 0, f"{run.stdout[-2000:]}\n{run.stderr[-2000:]}\n{logs}"
-    summary = json.loads(run.stdout[run.stdout.index("{"):])
-    assert all(code == 0 for code in summary["exit_codes"].values()), summary["exit_codes"]
+    summary = campaign_on_rclpy(workspace, out, ros_domain, 600, "--problem robot --stack nd --evaluations 20 --seed 1")
     mcap = next(out.glob("*.mcap"))
     answered(mcap, summary["run_id"])
     counts = rosbags_counts(mcap)
