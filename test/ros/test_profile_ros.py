@@ -196,6 +196,14 @@ class Graph:
             self.node.spin_once(0.05)
         assert gen.poll() == 0, f"generator: exit {gen.poll()}\n{self.log('generator')[-3000:]}"
 
+    def wait_for_log(self, name: str, text: str, timeout: float = 300.0) -> None:
+        """Until ``text`` is in ``name``'s log (an event; ``timeout`` is a safety net)."""
+        deadline = time.monotonic() + timeout
+        while text not in self.log(name) and time.monotonic() < deadline:
+            assert self.procs[name].poll() is None, f"{name} exited: {self.log(name)[-3000:]}"
+            self.node.spin_once(0.05)
+        assert text in self.log(name), f"{name} never logged {text!r}:\n{self.log(name)[-3000:]}"
+
     def answered(self) -> set[int]:
         return {r.scenario_id for r in self.results if r.run_id == GENERATOR["run_id"]}
 
@@ -219,20 +227,23 @@ GENERATOR = dict(problem="thermostat", algorithm="ga", population=8, offspring=8
 def test_a_worker_of_another_profile_gets_no_scenario(tmp_path, monkeypatch, ros_domain):
     graph = Graph(ros_domain, tmp_path / "logs", monkeypatch)
     try:
-        for worker, profile in (("w_refined", "refined"), ("w_replication", "replication")):
-            graph.start(worker, "sim_nodes.thermostat_sim", worker_id=worker, profile=profile, model="surrogate",
-                        min_result_subscribers=2)
+        worker = dict(model="surrogate", min_result_subscribers=2)
+        # the foreign worker and the generator first: the generator waits for a worker of its own
+        # profile, and the foreign one's heartbeats reach it (and its log) while it waits
+        graph.start("w_replication", "sim_nodes.thermostat_sim", worker_id="w_replication", profile="replication",
+                    **worker)
         graph.start("generator", "ambiegen_ros.nodes.generator", mode="in_the_loop", min_subscribers=2,
                     min_workers=1, subscriber_wait=300.0,  # the wait ends when both are matched
                     worker_timeout=60.0,  # late heartbeats on a busy machine must not open the run to anyone
                     **GENERATOR)
+        graph.wait_for_log("generator", "w_replication scores the 'replication' profile")
+        graph.start("w_refined", "sim_nodes.thermostat_sim", worker_id="w_refined", profile="refined", **worker)
         graph.run_generator(answered=16)
     finally:
         graph.close()
     mine = [r for r in graph.results if r.run_id == "profile-run"]
     assert len({r.scenario_id for r in mine}) == 16
     assert {r.worker for r in mine} == {"w_refined"}, "a worker of another profile scored scenarios"
-    assert "w_replication scores the 'replication' profile" in graph.log("generator")
 
 
 def test_a_worker_of_another_profile_answers_with_an_error(tmp_path, monkeypatch, ros_domain):
