@@ -234,7 +234,7 @@ class Campaign:
         self._start("nd_driver", "sim_nodes.nd_driver", ros_params(cmd_vel_stamped=True))
         self._start("sut_adapter", "sim_nodes.sut_adapter", ros_params(
             problem="robot", worker_id=f"sut_{self.run_id[-6:]}", profile=spec.profile, config_file=spec.config,
-            stall_topic="/nd_driver/stall", min_result_subscribers=2, settle_time=0.1))
+            stall_topic="/nd_driver/stall", plan_topic="/plan", min_result_subscribers=2, settle_time=0.1))
 
     def _stop_all(self) -> None:
         """Generator first (it may still be writing timeouts), then workers, recorder last."""

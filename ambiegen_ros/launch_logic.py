@@ -202,7 +202,9 @@ def plan_nav2_campaign(values: dict[str, str], share_dir: str, seed: int | None 
             for name, package, executable in NAV2_NODES]
     adapter = NodeSpec("sut_adapter", "sut_adapter", {
         "problem": "robot", "worker_id": f"nav2_{base.run_id[-6:]}", "goal_mode": "action", "time_scale": k,
-        "collision_topic": "/collision", "map_upsample": upsample, "settle_time": 1.0, "start_timeout": 120.0,
+        "collision_topic": "/collision", "plan_topic": "/plan", "map_upsample": upsample,
+        "tick_period": 0.02,  # a turn every 20 ms is plenty at Nav2's pace, and leaves it the CPU
+        "settle_time": 1.0, "start_timeout": 120.0,
         "config_file": generator.parameters["config_file"], "profile": value["profile"],
         "min_result_subscribers": 2})
     base.nodes = [recorder, world, *nav2, adapter, generator]

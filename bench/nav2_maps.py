@@ -10,8 +10,9 @@ Each map runs through ``robot_world`` (free-running at ``--time-scale``, ``/cloc
 ``sut_adapter`` in Nav2 mode (``navigate_to_pose``), all on the install's rclpy over
 ``rmw_cyclonedds_cpp``; a recorder writes a robot bag per batch to ``--mcap-dir`` (outside the
 repository: they are large). Maps: ``random`` = valid maps of the profile (seeded) that have a
-clearance route (else they would be invalid tests); ``suite:FILE`` = the best ``--count`` of a
-search's ``suite.json``.
+clearance route (else they would be invalid tests); ``suite:FILE[,FILE...]`` = the best ``--count`` of
+searches' ``suite.json`` files (ranked by F1 together). ``--config FILE.yaml`` (its ``problem_config``, e.g. a nearer ``goal``) is
+the problem of the maps, the adapter's and the key's: a map with another goal is another test.
 
 Results: ``docs/results/nav2/runs.jsonl``, one JSON object per executed map, appended and never
 rewritten; a map already there with the same label and time scale is skipped, so a batch that
@@ -42,8 +43,18 @@ RESULTS = REPO / "docs" / "results" / "nav2"
 RUNS = RESULTS / "runs.jsonl"  # --results moves it (a trial run), the pictures and README stay here
 
 
-def scenario_key(scenario: dict) -> str:
-    return hashlib.sha1(json.dumps(scenario, sort_keys=True).encode()).hexdigest()[:16]
+def scenario_key(scenario: dict, problem_config: dict | None = None) -> str:
+    data = scenario if not problem_config else {"scenario": scenario, "problem_config": problem_config}
+    return hashlib.sha1(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def problem_config(path: str) -> dict:
+    """The ``problem_config`` of a run config (``--config``), {} without one."""
+    if not path:
+        return {}
+    import yaml
+
+    return dict((yaml.safe_load(Path(path).read_text()) or {}).get("problem_config") or {})
 
 
 def done_keys(label: str, time_scale: float) -> set[str]:
@@ -53,12 +64,12 @@ def done_keys(label: str, time_scale: float) -> set[str]:
     return {r["key"] for r in rows if r["label"] == label and r["time_scale"] == time_scale}
 
 
-def pick_maps(spec: str, count: int, profile: str, seed: int) -> list:
+def pick_maps(spec: str, count: int, profile: str, seed: int, overrides: dict | None = None) -> list:
     from ambiegen_ros.problems import get_problem
     from ambiegen_ros.sims import reference
     from ambiegen_ros.sims.full_model import full_model_executor
 
-    p = get_problem("robot", {"profile": profile})
+    p = get_problem("robot", {**(overrides or {}), "profile": profile})
     full = full_model_executor(p)
     usable = lambda sc: full.validity(sc)[0] and reference.before(p, sc, full.config).passed  # noqa: E731
     if spec == "random":
@@ -68,9 +79,11 @@ def pick_maps(spec: str, count: int, profile: str, seed: int) -> list:
             if usable(sc):
                 out.append(sc)
         return out
-    if spec.startswith("suite:"):
-        suite = json.loads(Path(spec[6:]).read_text())
-        entries = suite.get("scenarios", suite) if isinstance(suite, dict) else suite
+    if spec.startswith("suite:"):  # one or more suite.json files, comma-separated: the best of them all
+        entries = []
+        for name in spec[6:].split(","):
+            suite = json.loads(Path(name).read_text())
+            entries += (suite.get("suite") or suite.get("scenarios") or []) if isinstance(suite, dict) else suite
         ranked = sorted(entries, key=lambda e: -float(e.get("f1", e.get("objectives", {}).get("f1", 0.0))))
         out = []
         for entry in ranked:
@@ -91,14 +104,16 @@ def run_batch(args) -> int:
     from ambiegen_ros.core.runs import versions
     from ambiegen_ros.problems import get_problem
     from ambiegen_ros.ros.transport import create_node
+    from ambiegen_ros.sims.full_model import full_model_executor
 
     os.environ[je.SETUP_VAR] = args.setup
     info = je.probe()
     if "skip" in info:
         raise SystemExit(info["skip"])
-    maps = pick_maps(args.maps, args.count, args.profile, args.seed)
+    overrides = problem_config(args.config)
+    maps = pick_maps(args.maps, args.count, args.profile, args.seed, overrides)
     done = done_keys(args.label, args.time_scale)
-    todo = [sc for sc in maps if scenario_key(sc.to_dict()) not in done]
+    todo = [sc for sc in maps if scenario_key(sc.to_dict(), overrides) not in done]
     print(f"{len(maps)} maps, {len(maps) - len(todo)} already in {RUNS}; running {len(todo)}")
     if not todo:
         return 0
@@ -123,15 +138,22 @@ def run_batch(args) -> int:
         graph.ros(name, f"ros2 run {package} {executable} --ros-args --params-file {scaled} -r __node:={name}",
                   install, ros)
     graph.ros("adapter", ours("sut_adapter", problem="robot", worker_id="nav2", goal_mode="action",
-                              time_scale=args.time_scale, collision_topic="/collision", map_upsample=args.map_upsample,
-                              settle_time=1.0, start_timeout=120.0, profile=args.profile), install, ros)
+                              time_scale=args.time_scale, collision_topic="/collision", plan_topic="/plan", tick_period=0.02,
+                              map_upsample=args.map_upsample,
+                              settle_time=1.0, start_timeout=120.0, profile=args.profile,
+                              **({"config_file": str(Path(args.config).resolve())} if args.config else {}),
+                              **{f"oracle.{k}": v for k, v in (o.split("=", 1) for o in args.oracle)}),
+              install, ros)
     graph.venv("recorder", "ambiegen_ros.nodes.recorder", {"output": str(mcap),
                                                           "extra_topics": ",".join(launch_logic.NAV2_TOPICS)},
                je.venv_env(domain))
     os.environ.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="SUBNET", AMBIEGEN_TRANSPORT="dds")
     node = create_node("nav2_maps", argv=[])
-    p = get_problem("robot", {"profile": args.profile})
-    limit = 2 * 300.0 / args.time_scale + 180.0
+    p = get_problem("robot", {**overrides, "profile": args.profile})
+    sim_cfg = full_model_executor(p).config
+
+    def limit(sc) -> float:  # a safety net: the oracle's own time limit (from the A* length) plus slack
+        return sim_cfg.time_limit(float(p.evaluate_scenarios([sc]).f1[0])) / args.time_scale + 300.0
     print(f"logs in {logs}; bag {mcap}")
     try:
         driver = Driver(node, p)
@@ -140,18 +162,20 @@ def run_batch(args) -> int:
             run_id = f"{args.label}-{stamp}-{i}"
             t0, w0 = time.monotonic(), time.time_ns()
             driver.send(run_id, [sc])
-            (res,) = driver.wait(run_id, 1, limit)
+            (res,) = driver.wait(run_id, 1, limit(sc))
             wall = time.monotonic() - t0
             if res is None:
-                print(f"map {i}: no answer within {limit:.0f} s; stopping (see {logs})")
+                print(f"map {i}: no answer within {limit(sc):.0f} s; stopping (see {logs})")
                 return 1
             m = res.metrics
             traj = np.asarray(res.trajectory)[::10].round(3).tolist() if res.trajectory is not None else None
-            row = {"label": args.label, "time_scale": args.time_scale, "key": scenario_key(sc.to_dict()),
-                   "profile": args.profile, "params_file": str(args.params_file), "scenario": sc.to_dict(),
+            row = {"label": args.label, "time_scale": args.time_scale, "key": scenario_key(sc.to_dict(), overrides),
+                   "profile": args.profile, "problem_config": overrides, "oracle": args.oracle,
+                   "params_file": str(args.params_file), "scenario": sc.to_dict(),
                    "failure_kind": res.failure_kind, "failed": res.failed, "detail": res.detail,
                    "nav2_status": m.get("nav2_status"), "nav2_error_code": m.get("nav2_error_code"),
-                   "nav2_error_msg": m.get("nav2_error_msg"), "time": m.get("time"), "wall_s": round(wall, 2),
+                   "nav2_error_msg": m.get("nav2_error_msg"), "plans": m.get("plans"),
+                   "plan_length_m": m.get("plan_length_m"), "time": m.get("time"), "wall_s": round(wall, 2),
                    "failure_point": list(res.failure_point) if res.failure_point is not None else None,
                    "trajectory_every_10": traj, "mcap": str(mcap), "wall_start_ns": w0, "wall_end_ns": time.time_ns(),
                    "when": datetime.now(timezone.utc).isoformat(timespec="seconds"), "versions": versions()}
@@ -167,6 +191,42 @@ def run_batch(args) -> int:
     return 0
 
 
+def beyond_limit(rows: list[dict]) -> set[tuple[str, float]]:
+    """(label, k) batches run faster than real time whose verdicts differ from real time's on a
+    map both ran: at that k the host could not keep Nav2's loops on time."""
+    out = set()
+    for r in rows:
+        if r["time_scale"] != 1.0:
+            base = [b for b in rows if b["label"] == r["label"] and b["time_scale"] == 1.0 and b["key"] == r["key"]]
+            if base and base[0]["failure_kind"] != r["failure_kind"]:
+                out.add((r["label"], r["time_scale"]))
+    return out
+
+
+def time_scale_check(rows: list[dict]) -> list[str]:
+    """Per label run at several time scales: the verdicts at each k against real time (k = 1) on
+    the same maps, and how far the simulated run times moved."""
+    out = []
+    for label in sorted({r["label"] for r in rows}):
+        base = {r["key"]: r for r in rows if r["label"] == label and r["time_scale"] == 1.0}
+        scales = sorted({r["time_scale"] for r in rows if r["label"] == label} - {1.0})
+        if not base or not scales:
+            continue
+        out += ["", f"Time scale against real time, {label} (the same maps; Nav2's loop rates x k):", "",
+                "| k | maps (also at k = 1) | same verdict | verdicts that differ | run time vs k = 1: median / "
+                "largest difference |", "|---|---|---|---|---|"]
+        for k in scales:
+            pairs = [(base[r["key"]], r) for r in rows if r["label"] == label and r["time_scale"] == k
+                     and r["key"] in base]
+            same = [a["failure_kind"] == b["failure_kind"] for a, b in pairs]
+            differ = "; ".join(f"{a['failure_kind']} -> {b['failure_kind']}" for (a, b), eq in zip(pairs, same)
+                               if not eq) or "none"
+            dt = [abs(float(b["time"]) - float(a["time"])) for a, b in pairs if a["time"] and b["time"]]
+            move = f"{np.median(dt):.1f} s / {max(dt):.1f} s" if dt else "-"
+            out.append(f"| {k:g} | {len(pairs)} | {sum(same)} | {differ} | {move} |")
+    return out
+
+
 def report(args) -> int:
     from ambiegen_ros.problems import get_problem
     from ambiegen_ros.ros.runlog import iter_messages
@@ -176,39 +236,64 @@ def report(args) -> int:
 
     rows = [json.loads(line) for line in RUNS.read_text().splitlines() if line.strip()]
     lines = ["# Nav2 on AmbieGen's maps (measured; appended by `bench/nav2_maps.py`)", "",
-             "| label | time scale | maps | failures | rate | distinct (by place and kind) | kinds | Nav2 results "
-             "(error codes) | failures per hour of runs |", "|---|---|---|---|---|---|---|---|---|"]
-    failures = []
+             "| label | time scale | maps | failures | rate | distinct (by place and kind) | kinds | failed without "
+             "a plan | Nav2 results (error codes) | failures per hour of runs |", "|---|---|---|---|---|---|---|---|---|---|"]
+    failures, beyond = [], beyond_limit(rows)
+    everywhere = DistinctFailures()  # across the batches, for the pictures
     for (label, k), group in sorted(Counter((r["label"], r["time_scale"]) for r in rows).items()):
         batch = [r for r in rows if r["label"] == label and r["time_scale"] == k]
         failed = [r for r in batch if r["failed"]]
         distinct = DistinctFailures()
-        problem = get_problem("robot", {"profile": batch[0]["profile"]})
+        problem = get_problem("robot", {**batch[0].get("problem_config", {}), "profile": batch[0]["profile"]})
         for r in failed:
+            # rows from before results carried their failure point: the last pose recorded stands in
+            point = r["failure_point"] or (r["trajectory_every_10"] or [None])[-1]
             out = Outcome(objectives={}, failed=True, failure_kind=r["failure_kind"], detail=r["detail"],
-                          failure_point=tuple(r["failure_point"]) if r["failure_point"] else None)
+                          failure_point=tuple(point) if point else None)
             sig = signature(problem, None, out)
             if sig is not None:
                 distinct.add(sig)
-            failures.append((r, problem, out))
+            if (label, k) not in beyond:  # the host's failures, not Nav2's: no picture
+                failures.append((sig is not None and everywhere.add(sig), r, problem, out))
         hours = sum(r["wall_s"] for r in batch) / 3600.0
         kinds = ", ".join(f"{kd} {n}" for kd, n in Counter(r["failure_kind"] for r in batch).most_common())
         nav2 = ", ".join(f"{s} {n}" for s, n in Counter(f"{r['nav2_status']}"
                                                          + (f" ({r['nav2_error_code']})" if int(r["nav2_error_code"] or 0) else "")
                                                          for r in batch).most_common())
-        lines.append(f"| {label} | {k:g} | {len(batch)} | {len(failed)} | {len(failed) / len(batch):.0%} | "
-                     f"{len(distinct)} | {kinds} | {nav2} | {len(failed) / hours if hours else 0:.1f} |")
+        counted = [r for r in failed if r.get("plans") is not None]  # rows from before plans were counted: "?"
+        planless = f"{sum(int(r['plans']) == 0 for r in counted)}" + (f" of {len(counted)}" if len(counted) < len(failed)
+                                                                        else "")
+        mark = " (beyond the time-scale limit: verdicts differ from real time, the host's, not Nav2's)" if (
+            label, k) in beyond else ""
+        lines.append(f"| {label}{mark} | {k:g} | {len(batch)} | {len(failed)} | {len(failed) / len(batch):.0%} | "
+                     f"{len(distinct)} | {kinds} | {planless} | {nav2} | {len(failed) / hours if hours else 0:.1f} |")
+    lines += ["", "Route lengths (the problem's A* length, F1) of the maps Nav2 failed and passed:", ""]
+    for (label, k), _ in sorted(Counter((r["label"], r["time_scale"]) for r in rows).items()):
+        batch = [r for r in rows if r["label"] == label and r["time_scale"] == k]
+        problem = get_problem("robot", {**batch[0].get("problem_config", {}), "profile": batch[0]["profile"]})
+        f1 = problem.evaluate_scenarios([problem.parse(r["scenario"]) for r in batch]).f1
+        span = lambda v: f"{len(v)} maps, {min(v):.0f}-{max(v):.0f} m" if len(v) else "none"  # noqa: E731
+        lines.append(f"* {label} (time scale {k:g}): failed {span([x for x, r in zip(f1, batch) if r['failed']])}; "
+                     f"passed {span([x for x, r in zip(f1, batch) if not r['failed']])}")
+    lines += time_scale_check(rows)
     lines += ["", "Pictures: map, trajectory (coloured by time), Nav2's last plan, and where it failed.", ""]
-    for i, (r, problem, out) in enumerate(failures[:3]):
+    # three pictures: failures distinct across the batches first, then one of each batch not shown yet
+    chosen = [f for f in failures if f[0]]
+    for f in failures:
+        if len(chosen) < 3 and f not in chosen and f[1]["label"] not in {c[1]["label"] for c in chosen}:
+            chosen.append(f)
+    chosen += [f for f in failures if f not in chosen]
+    for i, (_, r, problem, out) in enumerate(chosen[:3]):
         sc = problem.parse(r["scenario"])
         traj = np.asarray(r["trajectory_every_10"] or [], dtype=float).reshape(-1, 2)
-        out.trajectory, out.timeline = traj, {"t": np.arange(len(traj)) * 1.0}
+        out.trajectory, out.timeline = traj, {"t": np.linspace(0.0, float(r["time"] or 0.0), len(traj))}
         plan = None
         if Path(r["mcap"]).exists():
             for _, _, t, msg in iter_messages(r["mcap"], {"/plan"}):
                 if r["wall_start_ns"] <= t <= r["wall_end_ns"]:
                     plan = np.array([[q.pose.position.x, q.pose.position.y] for q in msg.poses])
-        path = save_execution_plot(problem, sc, out, RESULTS / f"failure_{i + 1}.png", plan=plan)
+        path = save_execution_plot(problem, sc, out, RESULTS / f"failure_{i + 1}.png", plan=plan,
+                                   system=f"Nav2 (time scale {r['time_scale']:g})")
         lines.append(f"![{r['failure_kind']}]({path.name}) {r['label']}: {r['detail']}")
     (RESULTS / "README.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
@@ -218,7 +303,7 @@ def report(args) -> int:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--setup", default=os.path.expanduser("~/jazzy-verify/install/setup.bash"))
-    ap.add_argument("--maps", default="random", help="random | suite:FILE")
+    ap.add_argument("--maps", default="random", help="random | suite:FILE[,FILE...]")
     ap.add_argument("--count", type=int, default=20)
     ap.add_argument("--profile", default="refined", choices=("replication", "refined"))
     ap.add_argument("--seed", type=int, default=3)
@@ -227,7 +312,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--map-upsample", type=int, default=5)
     ap.add_argument("--params-file", default=str(REPO / "config" / "nav2" / "pioneer_navfn_dwb.yaml"))
     ap.add_argument("--mcap-dir", default="~/nav2-bags")
-    ap.add_argument("--domain-id", type=int, default=61)
+    ap.add_argument("--config", default="", metavar="FILE.yaml", help="problem_config of the maps (e.g. a nearer goal)")
+    ap.add_argument("--oracle", action="append", default=[], metavar="FIELD=VALUE",
+                    help="an adapter oracle threshold (e.g. stall_time=1000: let Nav2 give its own verdict); "
+                         "use a label of its own")
+    ap.add_argument("--domain-id", type=int, default=7, help="outside the test suite's pool (10-101)")
     ap.add_argument("--report", action="store_true")
     ap.add_argument("--results", default="", help="the JSONL file appended to (default: the committed one)")
     args = ap.parse_args(argv)

@@ -13,6 +13,10 @@ To the generator it is one more sim worker (heartbeats on ``/ambiegen/workers``,
   ``odom_topic`` (``nav_msgs/Odometry``, poses in the map frame, or relative to the start pose
   with ``odom_frame:=start``), and optionally ``collision_topic`` (``std_msgs/Bool``, true = a
   collision) and ``stall_topic`` (``std_msgs/String``: the stack gave up, and why: a ``stall``).
+  With ``plan_topic`` (``nav_msgs/Path``, the stack's global plan; Nav2: ``/plan``) the plans
+  published after the goal are counted (``metrics["plans"]``, the last one's ``plan_length_m``),
+  and a failure without any says so: a robot that never moves because its planner gave no path
+  reads differently from one that could not follow its path.
   With ``goal_mode:=action`` (rclpy only) the goal is Nav2's ``navigate_to_pose`` action
   (``sim_nodes.nav2_client``): a scenario starts once the action server is up and every node of
   ``nav2_lifecycle_nodes`` is active; each new map clears both costmaps
@@ -193,6 +197,8 @@ class SutAdapter:
                 "goal": p("goal_topic", "/goal_pose"), "odom": p("odom_topic", "/odom"),
                 "collision": p("collision_topic", "", "optional std_msgs/Bool, true = collision ('' = none)"),
                 "stall": p("stall_topic", "", "optional std_msgs/String: the stack gave up, and why ('' = none)"),
+                "plan": p("plan_topic", "", "optional nav_msgs/Path: the stack's global plan, counted after the goal "
+                                            "(Nav2: /plan; '' = none)"),
             }
             self.pub_map = n.create_publisher("nav_msgs/msg/OccupancyGrid", self.topics["map"], LATCHED)
             self.pub_initialpose = n.create_publisher("geometry_msgs/msg/PoseWithCovarianceStamped",
@@ -203,6 +209,8 @@ class SutAdapter:
                 n.create_subscription("std_msgs/msg/Bool", self.topics["collision"], self.on_collision, DEFAULT)
             if self.topics["stall"]:
                 n.create_subscription("std_msgs/msg/String", self.topics["stall"], self.on_stall, DEFAULT)
+            if self.topics["plan"]:
+                n.create_subscription("nav_msgs/msg/Path", self.topics["plan"], self.on_plan, DEFAULT)
         elif self.problem_name == "vehicle":
             self.topics = {"road": p("road_topic", "/road"), "odom": p("odom_topic", "/odom")}
             self.pub_road = n.create_publisher("nav_msgs/msg/Path", self.topics["road"], LATCHED)
@@ -227,6 +235,7 @@ class SutAdapter:
         self.samples: list[tuple] = []
         self.collision = False
         self.stalled: str | None = None
+        self.plans, self.plan_length = 0, None  # the stack's plans since the goal went out
         self.pre_goal: tuple | None = None  # the last sample before the goal went out
         self._fast = None
         self.nav2 = None
@@ -274,6 +283,7 @@ class SutAdapter:
         self.job = job
         self.samples.clear()
         self.collision, self.stalled, self.pre_goal = False, None, None
+        self.plans, self.plan_length = 0, None
         job.started = time.monotonic()
         job.phase = "connecting"
         self._next_graph_check = 0.0
@@ -391,6 +401,12 @@ class SutAdapter:
     def on_stall(self, msg: Any) -> None:
         if self.job is not None and self.job.phase == "running" and self.stalled is None:
             self.stalled = conversions.clip_text(msg.data) or "no reason given"
+
+    def on_plan(self, msg: Any) -> None:
+        if self.job is not None and self.job.phase in ("waiting", "running"):
+            points = conversions.path_points(msg)
+            self.plans += 1
+            self.plan_length = float(np.hypot(*np.diff(points, axis=0).T).sum()) if len(points) > 1 else 0.0
 
     def on_collision(self, msg: Any) -> None:
         if self.job is not None and self.job.phase == "running" and bool(msg.data):
@@ -518,6 +534,10 @@ class SutAdapter:
             outcome.metrics = {**outcome.metrics, "nav2_status": r["status"], "nav2_error_code": r["error_code"],
                                "nav2_error_msg": r["error_msg"]}
             self.nav2.cancel()
+        if self.topics.get("plan"):
+            outcome.metrics = {**outcome.metrics, "plans": self.plans, "plan_length_m": self.plan_length}
+            if outcome.failed and not self.plans:
+                outcome.detail = f"{outcome.detail}; no plan on {self.topics['plan']} since the goal"
         if self.reference and outcome.failed:  # does the in-process reference pass the same scenario?
             outcome = reference.certify(outcome, reference.after(self.problem, job.scenario, self.oracle, outcome))
         wall = time.monotonic() - job.started

@@ -348,10 +348,26 @@ def result_message(
         failed=bool(outcome.failed),
         failure_kind=FAILURE_KINDS[outcome.failure_kind],
         detail=outcome.detail,
-        metrics=key_values(make, outcome.metrics),
+        metrics=key_values(make, _with_failure_point(outcome)),
         elapsed_sec=float(outcome.elapsed_sec),
         trajectory=path(make, now_ns, outcome.trajectory),
     )
+
+
+def _with_failure_point(outcome: Outcome) -> dict[str, Any]:
+    """The metrics, plus where it failed (``failure_point``, which the message has no field for): a
+    failure's place decides which failures are distinct, also for results that crossed ROS."""
+    if outcome.failure_point is None or "failure_point" in outcome.metrics:
+        return outcome.metrics
+    return {**outcome.metrics, "failure_point": [float(v) for v in outcome.failure_point]}
+
+
+def _failure_point(metrics: dict[str, str]) -> tuple[float, ...] | None:
+    try:
+        point = tuple(float(v) for v in json.loads(metrics["failure_point"]))
+    except (KeyError, TypeError, ValueError):
+        return None
+    return point if point and all(math.isfinite(v) for v in point) else None
 
 
 def outcome_from_message(msg: Any) -> Outcome:
@@ -374,6 +390,7 @@ def outcome_from_message(msg: Any) -> Outcome:
         metrics=metrics,
         trajectory=traj if len(traj) else None,
         elapsed_sec=float(msg.elapsed_sec),
+        failure_point=_failure_point(metrics),
         reference=None if checked is None else {"check": checked, "passed": kind != "invalid_test",
                                                 "reason": str(msg.detail) if kind == "invalid_test" else ""},
     )

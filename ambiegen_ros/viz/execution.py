@@ -15,13 +15,13 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 
-def _title(problem: Any, outcome: Any) -> str:
+def _title(problem: Any, outcome: Any, system: str = "full model") -> str:
     if outcome.failure_kind == "invalid_scenario":
         return f"{problem.name}: not executed ({outcome.detail})"
     if outcome.failure_kind == "invalid_test":
         return f"{problem.name}: INVALID TEST, not a failure\n{outcome.detail}"
     verdict = f"FAILED: {outcome.failure_kind}" if outcome.failed else "passed"
-    return f"{problem.name} full model {verdict}\n{outcome.detail}"
+    return f"{problem.name} {system} {verdict}\n{outcome.detail}"
 
 
 def _mark_failure(ax, outcome: Any) -> None:
@@ -105,9 +105,10 @@ def _thermostat(problem, scenario, outcome, ax) -> None:
     ax.grid(True, alpha=0.3)
 
 
-def plot_execution(problem: Any, scenario: Any, outcome: Any, ax=None, plan: Any = None):
+def plot_execution(problem: Any, scenario: Any, outcome: Any, ax=None, plan: Any = None, system: str = "full model"):
     """Draw one executed scenario; returns the axes (a new figure when ``ax`` is None). ``plan``
-    ((K, 2) m, robot): the path the system under test itself planned (Nav2's ``/plan``)."""
+    ((K, 2) m, robot): the path the system under test itself planned (Nav2's ``/plan``); ``system``
+    names who drove it in the title."""
     if ax is None:
         figsize = (10, 3.8) if problem.name == "thermostat" else (7, 6.5)
         _, ax = plt.subplots(figsize=figsize, layout="constrained")
@@ -117,16 +118,17 @@ def plot_execution(problem: Any, scenario: Any, outcome: Any, ax=None, plan: Any
         ax.plot(np.asarray(plan)[:, 0], np.asarray(plan)[:, 1], "-", color="tab:orange", lw=1.5, zorder=5,
                 label="its plan")
     _mark_failure(ax, outcome)
-    ax.set_title(_title(problem, outcome), fontsize=9)
+    ax.set_title(_title(problem, outcome, system), fontsize=9)
     ax.legend(loc="best", fontsize=7, framealpha=0.8)
     return ax
 
 
-def save_execution_plot(problem: Any, scenario: Any, outcome: Any, path, plan: Any = None) -> Any:
+def save_execution_plot(problem: Any, scenario: Any, outcome: Any, path, plan: Any = None,
+                        system: str = "full model") -> Any:
     """Write the picture to ``path`` (PNG); returns the path."""
     from pathlib import Path
 
-    ax = plot_execution(problem, scenario, outcome, plan=plan)
+    ax = plot_execution(problem, scenario, outcome, plan=plan, system=system)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     ax.figure.savefig(path, dpi=110)

@@ -6,7 +6,8 @@ Skipped, naming why, unless the install sourced by the real-ROS suite has those 
 
 * ten maps end to end (a small map config keeps each run to a minute of simulated time): every
   verdict in the finalised MCAP, Nav2's own result beside each; the open map Nav2 must complete,
-  and the trap (test/data/nav2_trap_map.json) must fail it;
+  and the trap (test/data/nav2_trap_map.json: a route longer than NavFn extracts) must fail it
+  without a plan;
 * ``ros2 launch ambiegen_ros nav2_campaign.launch.py`` ends by itself with every scenario answered,
   its log a robot bag (``/scan``, ``/odom``, ``/tf``, ``/cmd_vel``, ``/plan`` counted by rosbags).
 """
@@ -35,14 +36,14 @@ from ambiegen_ros.ros.runlog import summarize  # noqa: E402
 NAV2 = ("nav2_msgs", "nav2_bt_navigator", "nav2_controller", "nav2_planner", "nav2_behaviors", "nav2_lifecycle_manager",
         "nav2_navfn_planner", "dwb_core")
 TIME_SCALE = 2.0
-SMALL = {"goal": [14, 14]}  # a run of about a minute instead of four (the goal 19 m from the start)
+SMALL_CONFIG = REPO / "config" / "robot_small.yaml"  # a run of about a minute instead of four (goal (14, 14))
 TRAP = REPO / "test" / "data" / "nav2_trap_map.json"
 
 
-def small_config(tmp_path: Path) -> Path:
-    path = tmp_path / "robot_small.yaml"
-    path.write_text("problem: robot\nproblem_config:\n" + "".join(f"  {k}: {v}\n" for k, v in SMALL.items()))
-    return path
+def small_problem():
+    import yaml
+
+    return get_problem("robot", {**yaml.safe_load(SMALL_CONFIG.read_text())["problem_config"], "profile": "refined"})
 
 
 def start_nav2(g, workspace: Path, env: dict, tmp_path: Path, config: Path, mcap: Path) -> None:
@@ -60,7 +61,7 @@ def start_nav2(g, workspace: Path, env: dict, tmp_path: Path, config: Path, mcap
               workspace, env)
     g.ros("adapter", "ros2 run ambiegen_ros sut_adapter " + ros_args(
         problem="robot", profile="refined", config_file=config, worker_id="nav2", goal_mode="action",
-        time_scale=TIME_SCALE, collision_topic="/collision", map_upsample=5, settle_time=1.0, start_timeout=120.0,
+        time_scale=TIME_SCALE, collision_topic="/collision", plan_topic="/plan", map_upsample=5, tick_period=0.02, settle_time=1.0, start_timeout=120.0,
         min_result_subscribers=2), workspace, env)
 
 
@@ -76,12 +77,12 @@ def test_nav2_drives_ten_maps_with_every_verdict_in_the_log(jazzy, workspace, gr
     from ambiegen_ros.sims import reference
     from ambiegen_ros.sims.full_model import full_model_executor
 
-    config, mcap = small_config(tmp_path), tmp_path / "nav2.mcap"
+    config, mcap = SMALL_CONFIG, tmp_path / "nav2.mcap"
     g, env = graph(), ros_env(ros_domain)
     start_nav2(g, workspace, env, tmp_path, config, mcap)
     for key, value in venv_env(ros_domain).items():
         monkeypatch.setenv(key, value)
-    problem = get_problem("robot", {"profile": "refined", **SMALL})
+    problem = small_problem()
     full = full_model_executor(problem)
     if not TRAP.exists():  # a part of issue 19 not done yet: said, not skipped
         pytest.fail(f"{TRAP.relative_to(REPO)} does not exist: no map that Nav2 fails has been found yet "
@@ -109,7 +110,10 @@ def test_nav2_drives_ten_maps_with_every_verdict_in_the_log(jazzy, workspace, gr
     easy, trapped = got[0], got[1]
     assert easy.failure_kind == "none" and easy.metrics["nav2_status"] in ("succeeded", "running (cancelled: the "
                                                                            "oracle decided first)"), easy.detail
-    assert trapped.failed, trapped.detail
+    # the trap: a 335 m clearance route NavFn cannot extract (test/data/nav2_trap_map.json, "why"); the
+    # robot never gets a plan, a certified failure (the reference drives it)
+    assert trapped.failed and int(trapped.metrics["plans"]) == 0, trapped.detail
+    assert "no plan on /plan" in trapped.detail, trapped.detail
     assert all("nav2_status" in r.metrics for r in got)
     counts = rosbags_counts(mcap)
     for topic in ("/scan", "/odom", "/tf", "/cmd_vel", "/plan", "/map"):
@@ -119,7 +123,7 @@ def test_nav2_drives_ten_maps_with_every_verdict_in_the_log(jazzy, workspace, gr
 
 def test_nav2_campaign_launch_ends_by_itself(jazzy, workspace, graph, tmp_path, ros_domain):
     require(jazzy, *NAV2)
-    config = small_config(tmp_path)
+    config = SMALL_CONFIG
     g, env = graph(), ros_env(ros_domain)
     g.ros("launch", "ros2 launch ambiegen_ros nav2_campaign.launch.py " + " ".join(
         f"{k}:={v}" for k, v in dict(evaluations=20, seed=1, output_dir=tmp_path, time_scale=TIME_SCALE,

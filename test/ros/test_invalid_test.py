@@ -64,6 +64,7 @@ def test_result_message_round_trip_and_log_summary(tmp_path):
             assert (back.failure_kind, back.failed, back.detail) == (outcome.failure_kind, outcome.failed, outcome.detail)
             assert back.reference == ({**outcome.reference, "reason": outcome.reference["reason"]}
                                       if outcome.reference else None)
+            assert back.failure_point == outcome.failure_point  # where it failed crosses the wire too
             log.write(channel, reg.serialize(msg, RESULT), 1000 + i)
     with AnyReader([path]) as reader:  # an independent reader sees the kinds and reasons
         seen = [reg.deserialize(raw, conn.msgtype) for conn, _, raw in reader.messages()]

@@ -6,7 +6,8 @@ real DDS (each test its own ROS_DOMAIN_ID).
   return) and the collision flag, with the body stopped at a wall;
 * world + stack + adapter: every verdict equals the in-process full model's on the same maps and
   laser seed (a pass, a stall, a loiter; an invalid test is never sent), and every path is, to the
-  bit, the in-process run fed the wire's number formats (``helpers.wire``);
+  bit, the in-process run fed the wire's number formats (``helpers.wire``), and the stack's plan
+  counted; a failure without a plan says so;
 * ``ambiegen campaign --problem robot --stack nd``: every scenario answered, and the MCAP, read
   back with the ``mcap`` library (not our writer's code), holds every scenario, every result and
   the robot's topics with their publishers' QoS.
@@ -98,7 +99,7 @@ def test_the_nd_stack_behind_the_adapter_gives_the_in_process_verdicts(graph):
     procs.start("world", "sim_nodes.robot_world", **LOCKSTEP)
     procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True, **{"sim.safety_dist": FAILURES["safety_dist"]})
     procs.start("adapter", "sim_nodes.sut_adapter", problem="robot", worker_id="sut", profile="refined",
-                stall_topic="/nd_driver/stall", settle_time=0.1, run_invalid=True)
+                stall_topic="/nd_driver/stall", plan_topic="/plan", settle_time=0.1, run_invalid=True)
     driver = Driver(node, p)
     driver.wait_matched()
     walled = easy_robot_elements()
@@ -125,9 +126,31 @@ def test_the_nd_stack_behind_the_adapter_gives_the_in_process_verdicts(graph):
             n = min(len(res.trajectory), len(wire.trajectory))
             assert n >= len(wire.trajectory) - 1 and np.array_equal(np.asarray(res.trajectory[:n]), wire.trajectory[:n])
             assert float(res.metrics["time"]) == pytest.approx(wire.metrics["time"], abs=0.11)
+            # the stack's plan (nd_driver's route on /plan) counted by the adapter: the route the model follows
+            assert int(res.metrics["plans"]) >= 1
+            assert float(res.metrics["plan_length_m"]) == pytest.approx(float(ref.metrics["route_length"]), rel=1e-6)
     assert [r.failure_kind for r in got] == ["stall", "invalid_test", "loiter", "none"]
     assert "emergency_stop" in got[0].detail  # the stack's own stall flag, on /nd_driver/stall
     print(f"nd stack through the adapter: {len(scs)} scenarios in {wall:.1f} s")
+
+
+def test_a_failure_without_a_plan_says_so(graph):
+    """The adapter counts the stack's plans on ``plan_topic``: a stack whose plans go elsewhere
+    fails with "no plan" in the verdict (as Nav2 does on a route its planner cannot extract)."""
+    p = get_problem("robot", {"profile": "refined"})
+    procs, node = graph()
+    procs.start("world", "sim_nodes.robot_world", **LOCKSTEP)
+    procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True, plan_topic="/nd/plan",
+                **{"sim.safety_dist": FAILURES["safety_dist"]})
+    procs.start("adapter", "sim_nodes.sut_adapter", problem="robot", worker_id="sut", profile="refined",
+                stall_topic="/nd_driver/stall", plan_topic="/plan", settle_time=0.1)
+    driver = Driver(node, p)
+    driver.wait_matched()
+    driver.send("noplan", [p.parse(FAILURES["stall"])])
+    (res,) = driver.wait("noplan", 1, 300)  # a safety net: the wait ends with the result
+    assert res is not None, procs.logs()
+    assert res.failure_kind == "stall" and int(res.metrics["plans"]) == 0, res.detail
+    assert "; no plan on /plan since the goal" in res.detail, res.detail
 
 
 def test_a_stack_campaign_logs_a_robot_bag(tmp_path, ros_domain):
