@@ -51,7 +51,7 @@ def recorded_scenarios(path: str | Path) -> Recorded:
     problem = run_id = ""
     seed = 0
     scenarios: dict[int, Scenario] = {}
-    outcomes: dict[int, Outcome] = {}
+    results: list[Any] = []  # kept until the run is known: a result may be logged before its scenario
     for topic, _, _, msg in iter_messages(path, set(SCENARIO_TOPICS) | {topics.RESULTS}):
         if topic in SCENARIO_TOPICS:
             meta = msg.meta
@@ -60,10 +60,14 @@ def recorded_scenarios(path: str | Path) -> Recorded:
             if meta.run_id == run_id and int(meta.scenario_id) not in scenarios:
                 data = Scenario.parse_json(meta.scenario_json)
                 scenarios[int(meta.scenario_id)] = Scenario(data["problem"], data["elements"])
-        elif msg.run_id == run_id and int(msg.scenario_id) not in outcomes:
-            outcomes[int(msg.scenario_id)] = outcome_from_message(msg)
+        else:
+            results.append(msg)
     if not scenarios:
         raise ScenarioError("log", f"{path} holds no scenario messages", ", ".join(SCENARIO_TOPICS))
+    outcomes: dict[int, Outcome] = {}
+    for msg in results:
+        if msg.run_id == run_id and int(msg.scenario_id) not in outcomes:
+            outcomes[int(msg.scenario_id)] = outcome_from_message(msg)
     return Recorded(problem, run_id, scenarios, outcomes, seed)
 
 

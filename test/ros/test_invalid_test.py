@@ -75,3 +75,27 @@ def test_result_message_round_trip_and_log_summary(tmp_path):
     summary = summarize(path, "run-1")
     assert summary["failures"] == 1 and summary["invalid_tests"] == 2
     assert summary["outcomes"] == {"invalid_test": 2, "loiter": 1, "none": 1}
+
+
+def test_a_result_logged_before_its_scenario_is_still_read(tmp_path):
+    """The recorder's readers are separate: a result can land in the log a hair before the first
+    scenario message (seen on Fast DDS). ``recorded_scenarios`` (replay, the Fast DDS bench) must
+    still pair it with its run."""
+    from ambiegen_ros.nodes.replay import recorded_scenarios
+    from ambiegen_ros.problems import get_problem
+
+    reg, problem = get_registry(), get_problem("thermostat")
+    scenario = problem.codec.from_rows(problem.sample_rows(1, np.random.default_rng(0)))[0]
+    path = tmp_path / "early.mcap"
+    with McapLog(path) as log:
+        results = log.add_channel(topics.RESULTS, RESULT, qos.DEFAULT)
+        typename = topics.SCENARIO_TYPES["thermostat"]
+        scenarios = log.add_channel(topics.scenarios("thermostat"), typename, qos.DEFAULT)
+        result = conversions.result_message(reg.new, 1000, "run-1", 0, "thermostat", "w", _failed())
+        log.write(results, reg.serialize(result, RESULT), 1000)  # the result first
+        meta = conversions.ScenarioMeta(run_id="run-1", scenario_id=0)
+        msg = conversions.scenario_message(reg.new, 1001, problem, scenario, meta)
+        log.write(scenarios, reg.serialize(msg, typename), 1001)
+    rec = recorded_scenarios(path)
+    assert rec.run_id == "run-1" and set(rec.scenarios) == {0}
+    assert set(rec.outcomes) == {0} and rec.outcomes[0].failure_kind == "loiter"
