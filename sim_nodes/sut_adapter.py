@@ -235,7 +235,7 @@ class SutAdapter:
         self.samples: list[tuple] = []
         self.collision = False
         self.stalled: str | None = None
-        self.plans, self.plan_length = 0, None  # the stack's plans since the goal went out
+        self.plans, self.last_plan = 0, None  # the stack's plans since the goal went out, the last one
         self.pre_goal: tuple | None = None  # the last sample before the goal went out
         self._fast = None
         self.nav2 = None
@@ -283,7 +283,7 @@ class SutAdapter:
         self.job = job
         self.samples.clear()
         self.collision, self.stalled, self.pre_goal = False, None, None
-        self.plans, self.plan_length = 0, None
+        self.plans, self.last_plan = 0, None
         job.started = time.monotonic()
         job.phase = "connecting"
         self._next_graph_check = 0.0
@@ -404,9 +404,7 @@ class SutAdapter:
 
     def on_plan(self, msg: Any) -> None:
         if self.job is not None and self.job.phase in ("waiting", "running"):
-            points = conversions.path_points(msg)
-            self.plans += 1
-            self.plan_length = float(np.hypot(*np.diff(points, axis=0).T).sum()) if len(points) > 1 else 0.0
+            self.plans, self.last_plan = self.plans + 1, msg  # measured once, when the run ends
 
     def on_collision(self, msg: Any) -> None:
         if self.job is not None and self.job.phase == "running" and bool(msg.data):
@@ -535,7 +533,9 @@ class SutAdapter:
                                "nav2_error_msg": r["error_msg"]}
             self.nav2.cancel()
         if self.topics.get("plan"):
-            outcome.metrics = {**outcome.metrics, "plans": self.plans, "plan_length_m": self.plan_length}
+            points = conversions.path_points(self.last_plan) if self.last_plan is not None else np.zeros((0, 2))
+            length = float(np.hypot(*np.diff(points, axis=0).T).sum()) if self.last_plan is not None else None
+            outcome.metrics = {**outcome.metrics, "plans": self.plans, "plan_length_m": length}
             if outcome.failed and not self.plans:
                 outcome.detail = f"{outcome.detail}; no plan on {self.topics['plan']} since the goal"
         if self.reference and outcome.failed:  # does the in-process reference pass the same scenario?
