@@ -533,8 +533,10 @@ class SutAdapter:
                                "nav2_error_msg": r["error_msg"]}
             self.nav2.cancel()
         if self.topics.get("plan"):
-            points = conversions.path_points(self.last_plan) if self.last_plan is not None else np.zeros((0, 2))
-            length = float(np.hypot(*np.diff(points, axis=0).T).sum()) if self.last_plan is not None else None
+            length = None
+            if self.last_plan is not None:
+                points = conversions.path_points(self.last_plan)
+                length = float(np.hypot(*np.diff(points, axis=0).T).sum())
             outcome.metrics = {**outcome.metrics, "plans": self.plans, "plan_length_m": length}
             if outcome.failed and not self.plans:
                 outcome.detail = f"{outcome.detail}; no plan on {self.topics['plan']} since the goal"
