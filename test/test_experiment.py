@@ -35,6 +35,7 @@ def tiny(tmp_path_factory) -> Path:
     proc = ambiegen("experiment", *TINY, "--jobs", "2", "--out", str(out))
     assert proc.returncode == 0, proc.stderr
     assert "replication profile" in proc.stdout
+    assert "too few runs to decide: with 3 and 3 runs" in proc.stdout  # 3 runs cannot show a difference
     return out
 
 
@@ -68,7 +69,10 @@ def test_tiny_experiment_writes_consistent_outputs(tiny):
     report = (tiny / "report.md").read_text()
     ga_median = float(np.median([float(r["best_f1"]) for r in rows if r["algorithm"] == "ga"]))
     assert f"| GA (SO) | 3 | {ga_median:.4g} |" in report
-    assert "profile `replication`" in report and "3.01" in report  # ours next to the replication code's median
+    assert "profile `replication`" in report
+    assert "| 3.024 (30) |" in report  # ours next to the replication code's stored median (30 runs)
+    # three runs against three cannot give p < 0.05 whatever the values: the report says so
+    assert "**Too few runs to decide:** with 3 and 3 runs the two-sided Mann-Whitney p cannot fall below 0.1," in report
     config = json.loads((tiny / "config.json").read_text())
     assert config["seed"] == 11 and config["profile"] == "replication" and config["versions"]["ambiegen_ros"]
     for png in ("convergence.png", "final_f1_diversity.png"):
@@ -166,3 +170,23 @@ def test_a_failing_run_is_reported_and_the_others_finish(tmp_path, monkeypatch):
     assert [r["algorithm"] for r in result["records"]] == ["ga"]
     assert not (tmp_path / "exp" / "runs" / "random-000.json").exists()  # --resume will run it
     assert [r["algorithm"] for r in read_csv(tmp_path / "exp" / "results.csv")] == ["ga"]
+
+
+@pytest.mark.parametrize("runs, warned", [(3, True), (5, False)])
+def test_report_warns_only_when_the_runs_cannot_decide(runs, warned):
+    from ambiegen_ros.core.stats import compare
+    from ambiegen_ros.experiment.report import report
+
+    rng = np.random.default_rng(runs)
+    records = [{"algorithm": a, "run": k, "best_f1": float(rng.random() + (2 if a == "ga" else 0)),
+                "diversity": float(rng.random()), "suite_size": 10} for a in ("ga", "random") for k in range(runs)]
+    by = {a: [r for r in records if r["algorithm"] == a] for a in ("ga", "random")}
+    doc = {"runs": {"ga": runs, "random": runs},
+           "tests": [compare(m, "ga", [r[m] for r in by["ga"]], "random", [r[m] for r in by["random"]])
+                     for m in ("best_f1", "diversity")]}
+    settings = {"evaluations": 400, "population": 20, "offspring": 20}
+    config = {"problem": "vehicle", "profile": "replication", "runs": runs, "command": ["ambiegen", "experiment"],
+              "identity": {"ambiegen_ros": "0", "seed": 0, "settings": {"ga": settings, "random": settings}}}
+    text = report(config, records, doc, plots=[])
+    assert ("Too few runs to decide" in text) is warned
+    assert "| 16.3 (16) |" in text and "| 7.874 (30) |" in text  # the stored medians, with their run counts

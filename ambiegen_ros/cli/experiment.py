@@ -23,7 +23,7 @@ def _spec_from_args(args: argparse.Namespace):
 
 
 def cmd_experiment(args: argparse.Namespace) -> int:
-    from ..experiment import ALGORITHM_LABELS, ExperimentError, median, run_experiment
+    from ..experiment import ALGORITHM_LABELS, ExperimentError, median, run_experiment, too_few_runs
 
     if args.jobs is not None and args.jobs < 1:
         raise BadInput("--jobs: must be >= 1")
@@ -46,6 +46,10 @@ def cmd_experiment(args: argparse.Namespace) -> int:
         else:
             line += f", diversity {median([r['diversity'] for r in rs]):.3f}"
         print(line)
+    counts = sorted(sum(r["algorithm"] == alg for r in records) for alg in config["algorithms"])
+    why = too_few_runs(*counts[:2]) if len(counts) >= 2 else None
+    if why:
+        print(f"  too few runs to decide: {why} (the paper ran 30)")
     print(f"  report: {Path(args.out) / 'report.md'}")
     if errors:
         print(f"ambiegen experiment: {len(errors)} run(s) failed; see above; --resume re-runs them", file=sys.stderr)
@@ -64,7 +68,7 @@ def register(sub) -> None:
                                    "and executing scenarios on the full-model simulators).")
     p.add_argument("--problem", required=True, choices=PROBLEM_NAMES)
     p.add_argument("--algorithms", default="ga,nsga2,random", help="comma-separated (default ga,nsga2,random)")
-    p.add_argument("--runs", type=int, default=30, help="runs per algorithm (default 30, as the paper)")
+    p.add_argument("--runs", type=int, default=30, help="runs per algorithm (default 30, as the paper; 3 or fewer cannot show a significant difference)")
     p.add_argument("--jobs", type=int, help="parallel runs (default: all cores)")
     p.add_argument("--out", required=True, metavar="DIR", help="experiment directory (must be new or empty, "
                                                                  "or an earlier experiment with --resume)")

@@ -56,6 +56,14 @@ def mann_whitney(a: Sequence[float], b: Sequence[float]) -> float:
     return float(mannwhitneyu(x, y, alternative="two-sided").pvalue)
 
 
+def smallest_p(n_a: int, n_b: int) -> float:
+    """The smallest two-sided Mann-Whitney p that samples of these sizes can give (exact test, no
+    ties, the samples fully apart): 2 / C(n_a + n_b, n_a). 3 runs against 3 can never reach 0.05."""
+    if n_a < 1 or n_b < 1:
+        return 1.0
+    return min(1.0, 2.0 / math.comb(n_a + n_b, n_a))
+
+
 def compare(metric: str, name_a: str, a: Sequence[float], name_b: str, b: Sequence[float]) -> dict:
     """One row of ``stats.json``: the test and effect size of ``a`` against ``b``."""
     delta = cliffs_delta(a, b)
@@ -86,4 +94,4 @@ def spearman(x: Sequence[float], y: Sequence[float]) -> tuple[float, float, int]
     return float(res[0]), float(res[1]), n
 
 
-__all__ = ["MAGNITUDES", "cliffs_delta", "compare", "magnitude", "mann_whitney", "spearman"]
+__all__ = ["MAGNITUDES", "cliffs_delta", "compare", "magnitude", "mann_whitney", "smallest_p", "spearman"]

@@ -34,7 +34,8 @@ from typing import Any
 _HOMES = {
     "pipeline": ("SAMPLE_CAP", "CandidateQueue", "FullModelTally", "SearchProcess", "full_model_run"),
     "records": ("run_path", "write_atomic"),
-    "report": ("ALGORITHM_LABELS", "PAPER_MEDIANS", "PAPER_RQ3", "PAPER_TESTS", "median", "report"),
+    "report": ("ALGORITHM_LABELS", "PAPER_MEDIANS", "PAPER_RQ3", "PAPER_TESTS", "median", "report",
+               "too_few_runs"),
     "runner": ("ExperimentProgress", "default_jobs", "prepare", "run_experiment", "run_task"),
     "spec": ("PAPER_RQ3_BUDGET_S", "RQ3_ROUNDS", "ExperimentError", "ExperimentSpec", "resolve",
              "run_identity"),

@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from ambiegen_ros.core.stats import cliffs_delta, compare, magnitude, mann_whitney, spearman
+from ambiegen_ros.core.stats import cliffs_delta, compare, magnitude, mann_whitney, smallest_p, spearman
 
 
 def test_cliffs_delta_hand_counts():
@@ -39,6 +39,16 @@ def test_mann_whitney_exact_two_sided_p_values():
     assert mann_whitney([1, 3, 5], [2, 4, 6]) == pytest.approx(14 / 20)
     # n = m = 4, complete separation: 2 / C(8, 4) = 2 / 70
     assert mann_whitney([10, 11, 12, 13], [1, 2, 3, 4]) == pytest.approx(2 / 70)
+
+
+@pytest.mark.parametrize("n_a, n_b, floor", [
+    (1, 1, 2 / 2), (2, 2, 2 / 6), (3, 3, 2 / 20), (3, 5, 2 / 56), (4, 4, 2 / 70), (5, 5, 2 / 252), (2, 7, 2 / 36),
+])
+def test_smallest_p_is_what_fully_separated_samples_give(n_a, n_b, floor):
+    # 2 / C(n_a + n_b, n_a) by hand; no arrangement is more extreme than "every a above every b"
+    a, b = [100.0 + k for k in range(n_a)], [float(k) for k in range(n_b)]
+    assert smallest_p(n_a, n_b) == pytest.approx(floor)
+    assert smallest_p(n_a, n_b) == pytest.approx(mann_whitney(a, b))
 
 
 def test_mann_whitney_identical_constant_samples_show_no_difference():
