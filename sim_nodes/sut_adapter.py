@@ -69,6 +69,7 @@ from ambiegen_ros.ros.qos import DEFAULT, LATCHED, STREAM, Qos
 from ambiegen_ros.sims import Outcome, reference
 from ambiegen_ros.sims.full_model import FullModelExecutor, sim_config
 from ambiegen_ros.sims.oracles import CarJudge, RobotJudge, ThermostatJudge, warm_up_judge
+from ambiegen_ros.sims.robot import polyline_length
 from ambiegen_ros.nodes import run_node
 from sim_nodes.worker import WorkerEndpoint, load_problem, worker_node
 
@@ -533,10 +534,7 @@ class SutAdapter:
                                "nav2_error_msg": r["error_msg"]}
             self.nav2.cancel()
         if self.topics.get("plan"):
-            length = None
-            if self.last_plan is not None:
-                points = conversions.path_points(self.last_plan)
-                length = float(np.hypot(*np.diff(points, axis=0).T).sum())
+            length = None if self.last_plan is None else polyline_length(conversions.path_points(self.last_plan))
             outcome.metrics = {**outcome.metrics, "plans": self.plans, "plan_length_m": length}
             if outcome.failed and not self.plans:
                 outcome.detail = f"{outcome.detail}; no plan on {self.topics['plan']} since the goal"

@@ -481,6 +481,11 @@ def plan_route(grid: np.ndarray, resolution: float, start: tuple[int, int], goal
     return rdp(pts, config.rdp_epsilon), length * resolution
 
 
+def polyline_length(points: np.ndarray) -> float:
+    """Length in metres of a polyline of (K, 2) points (0 for fewer than two)."""
+    return float(np.hypot(*np.diff(np.asarray(points, dtype=float).reshape(-1, 2), axis=0).T).sum())
+
+
 def navigate(grid: np.ndarray, resolution: float, start: tuple[int, int], goal: tuple[int, int],
              config: RobotSimConfig | None = None, seed: int = 0, diagonal: str = "both_free",
              route: np.ndarray | None = None) -> dict[str, Any]:
@@ -492,7 +497,7 @@ def navigate(grid: np.ndarray, resolution: float, start: tuple[int, int], goal: 
         waypoints, route_length = plan_route(np.asarray(grid, dtype=bool), resolution, start, goal, cfg, diagonal)
     else:
         waypoints = np.asarray(route, dtype=float).reshape(-1, 2)
-        route_length = float(np.hypot(*np.diff(waypoints, axis=0).T).sum()) if len(waypoints) else math.inf
+        route_length = polyline_length(waypoints) if len(waypoints) else math.inf
     start_xy = ((start[0] + 0.5) * resolution, (start[1] + 0.5) * resolution)
     goal_xy = ((goal[0] + 0.5) * resolution, (goal[1] + 0.5) * resolution)
     run = drive(grid, resolution, start_xy, goal_xy, waypoints, cfg, seed, cfg.time_limit(route_length))
@@ -515,7 +520,7 @@ def drive(grid: np.ndarray, resolution: float, start_xy: tuple[float, float], go
     cfg = config or RobotSimConfig()
     grid = np.asarray(grid, dtype=bool)
     waypoints = np.asarray(waypoints, dtype=float).reshape(-1, 2)
-    polyline = float(np.hypot(*np.diff(waypoints, axis=0).T).sum()) if len(waypoints) else math.inf
+    polyline = polyline_length(waypoints) if len(waypoints) else math.inf
     time_limit = cfg.time_limit(polyline) if time_limit is None else float(time_limit)
     sx, sy = float(start_xy[0]), float(start_xy[1])
     gx, gy = float(goal_xy[0]), float(goal_xy[1])
@@ -614,5 +619,5 @@ def simulate(problem: Any, scenario: Any, config: RobotSimConfig | None = None, 
 __all__ = ["ENGINES", "GOAL_TOLERANCE", "ND_GOAL_TOLERANCE", "PIONEER2DX", "PIONEER2DX_LENGTH", "PIONEER2DX_ORIGIN_X",
            "PIONEER2DX_WIDTH", "PLANNERS", "STALL_CAUSES", "WAYPOINT_TOLERANCE", "WORLD_FIELDS", "GapPlanner",
            "RobotMonitors", "RobotSimConfig", "RobotWorld", "RouteFollower", "WallGeometry", "cast_rays", "clearances",
-           "drive", "nd_driver", "navigate", "pad_grid", "pioneer2dx_footprint", "plan_route", "rdp", "simulate",
-           "wall_distance"]
+           "drive", "nd_driver", "navigate", "pad_grid", "pioneer2dx_footprint", "plan_route", "polyline_length", "rdp",
+           "simulate", "wall_distance"]
