@@ -197,7 +197,8 @@ def plan_nav2_campaign(values: dict[str, str], share_dir: str, seed: int | None 
     recorder, generator = base.node("recorder"), base.node("generator")
     recorder.parameters["extra_topics"] = ",".join(NAV2_TOPICS)
     generator.parameters.update(min_subscribers=2, min_workers=1, max_in_flight=1, result_timeout=result_timeout)
-    world = NodeSpec("robot_world", "robot_world", {"time_scale": k, "seed": base.seed, "collision_topic": "/collision"})
+    world = NodeSpec("robot_world", "robot_world", {"time_scale": k, "seed": base.seed, "collision_topic": "/collision",
+                                                      "paired_start": True})
     nav2 = [NodeSpec(name, executable, {"use_sim_time": True}, package=package, params_files=[str(scaled)])
             for name, package, executable in NAV2_NODES]
     adapter = NodeSpec("sut_adapter", "sut_adapter", {

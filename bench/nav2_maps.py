@@ -132,7 +132,8 @@ def run_batch(args) -> int:
     graph = je.Graph(logs)
     install = je.working_tree_install(logs / "ws")  # rclpy needs ambiegen_msgs built by colcon
     ours = lambda executable, **p: f"ros2 run ambiegen_ros {executable} {je.ros_args(**p)}"  # noqa: E731
-    graph.ros("world", ours("robot_world", time_scale=args.time_scale, seed=args.seed, collision_topic="/collision"),
+    graph.ros("world", ours("robot_world", time_scale=args.time_scale, seed=args.seed,
+                                collision_topic="/collision", paired_start=True),
               install, ros)
     for name, package, executable in launch_logic.NAV2_NODES:
         graph.ros(name, f"ros2 run {package} {executable} --ros-args --params-file {scaled} -r __node:={name}",

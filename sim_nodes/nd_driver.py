@@ -18,9 +18,11 @@ poses), ``map_topic`` (``nav_msgs/OccupancyGrid``, latched) and a goal on ``goal
   ``start_yaw_tolerance``), so
   that a scan from before the teleport, still on its way, never starts a run (``robot_world``
   spends a step on every teleport, so the stamps tell them apart).
-* *Giving up*: when the ND driver gives up (emergency stop, no navigable region, stuck) or no
-  route exists, the reason goes out once on ``stall_topic`` (``std_msgs/String``, '' = none), the
-  robot's stall flag; it then commands zero until the next goal.
+* *Status*: with every command, a status on ``stall_topic`` (``diagnostic_msgs/DiagnosticArray``,
+  '' = none) stamped with the scan it answers: OK, or, once the ND driver gives up (emergency stop,
+  no navigable region, stuck) or no route exists, ERROR with the reason, the robot's stall flag;
+  it then commands zero until the next goal. The OK ones are heartbeats: a judge that orders the
+  streams by stamp (``sut_adapter``) knows from them that the stack has not given up so far.
 
 A new map drops the goal: nothing is commanded until the next one. Topics are not ordered among
 themselves, so a goal stamped after the map (or the initial pose) that arrives before it stays.
@@ -54,7 +56,8 @@ class NDDriverNode:
             ("odom", "/odom", "nav_msgs/Odometry in (map-frame poses)"), ("goal", "/goal_pose", "PoseStamped in"),
             ("initialpose", "/initialpose", "PoseWithCovarianceStamped in: where the next run starts ('' = none)"),
             ("cmd_vel", "/cmd_vel", "velocity commands out"), ("plan", "/plan", "nav_msgs/Path out ('' = none)"),
-            ("stall", "/nd_driver/stall", "std_msgs/String out: why the robot gave up ('' = none)"))}
+            ("stall", "/nd_driver/stall", "diagnostic_msgs/DiagnosticArray out with every command: OK, or ERROR "
+                                          "and why the robot gave up ('' = none)"))}
         self.stamped = bool(p("cmd_vel_stamped", False, "publish geometry_msgs/TwistStamped"))
         self.start_tolerance = float(p("start_tolerance", 0.5, "after an initial pose, a goal is planned from a pose "
                                                                "this close to it [m] (older odometry is ignored)"))
@@ -65,7 +68,8 @@ class NDDriverNode:
         self.pub_cmd = n.create_publisher("geometry_msgs/msg/TwistStamped" if self.stamped else "geometry_msgs/msg/Twist",
                                           topic["cmd_vel"], DEFAULT)
         self.pub_plan = n.create_publisher("nav_msgs/msg/Path", topic["plan"], PLAN) if topic["plan"] else None
-        self.pub_stall = n.create_publisher("std_msgs/msg/String", topic["stall"], DEFAULT) if topic["stall"] else None
+        self.pub_stall = (n.create_publisher("diagnostic_msgs/msg/DiagnosticArray", topic["stall"], DEFAULT)
+                          if topic["stall"] else None)
         n.create_subscription("nav_msgs/msg/OccupancyGrid", topic["map"], self.on_map, LATCHED)
         n.create_subscription("sensor_msgs/msg/LaserScan", topic["scan"], self.on_scan, SENSOR_IN)
         n.create_subscription("nav_msgs/msg/Odometry", topic["odom"], self.on_odom, SENSOR_IN)
@@ -81,7 +85,7 @@ class NDDriverNode:
         self.odom: tuple[int, tuple[float, float, float], float, float] | None = None  # stamp, pose, v, w
         self.answered = -1  # stamp of the last scan answered
         self.stamp0 = 0  # stamp of the scan the current goal started from
-        self.reported = False
+        self.gave_up: str | None = None  # why, once the ND driver gave up on the current goal
         self.expected_start: tuple[float, float, float] | None = None  # the last initial pose, until a plan starts there
         self.start_stamp: int | None = None  # the first odometry showing the robot there: older scans are stale
         n.logger.info(f"nd driver: {topic['scan']} + {topic['odom']} + {topic['goal']} -> {topic['cmd_vel']}"
@@ -106,7 +110,7 @@ class NDDriverNode:
 
     def on_goal(self, msg: Any) -> None:
         x, y = conversions.require_finite((msg.pose.position.x, msg.pose.position.y), "pose.position")
-        self.goal, self.follower, self.reported = (float(x), float(y)), None, False
+        self.goal, self.follower, self.gave_up = (float(x), float(y)), None, None
         self.goal_stamp = conversions.stamp_ns(msg.header)
         self._answer()
 
@@ -152,10 +156,12 @@ class NDDriverNode:
             v, w, stall = follower.command(t, pose, v_now, w_now, ranges, hits)
         self.answered = stamp
         self._publish_command(v, w)
-        if stall is not None and not self.reported and self.pub_stall is not None:
-            self.reported = True
-            self.pub_stall.publish(self._make("std_msgs/msg/String", data=stall))
+        if stall is not None and self.gave_up is None:
+            self.gave_up = stall
             self.node.logger.info(f"gave up: {stall}")
+        if self.pub_stall is not None:  # stamped with the scan it answers: a decision on what it saw then
+            self.pub_stall.publish(conversions.status_report(self._make, stamp, self.node.name, self.gave_up or "",
+                                                             "base_link"))
 
     def _time(self, stamp: int) -> float:
         """Seconds since the goal's first scan, plus one control period: the command for a scan

@@ -19,8 +19,9 @@ Out (stamps are simulated time):
 * ``scan_topic`` (``sensor_msgs/LaserScan``) every ``1 / scan_rate`` simulated seconds: ``sim.beams``
   beams over ``sim.fov_deg``, ``sim.laser_range`` m, Gaussian noise ``sim.laser_noise`` m seeded
   with ``seed`` per run; no return reads ``inf``;
-* ``collision_topic`` (``std_msgs/Bool``): true while the body touches a wall (it stops there, as
-  Stage's does), with every scan and on every change.
+* ``collision_topic`` (``diagnostic_msgs/DiagnosticArray``, stamped like the odometry of its step):
+  level ERROR while the body touches a wall (it stops there, as Stage's does), else OK, with every
+  scan and on every change; the OK ones tell a judge by stamps that no collision happened so far.
 
 Time: ``sim.dt`` (default 0.02 s, so odometry and TF come at 50 Hz) per step; the world runs
 ``time_scale`` times faster than the wall clock (0 = as fast as it can). With ``lockstep:=true``
@@ -28,7 +29,9 @@ it instead waits after each scan until a velocity command answers it (re-sending
 ``resend_period`` wall seconds while it waits), so a slow controller sees the same run as a
 fast one; ``time_scale`` is then ignored. With ``cmd_vel_stamped:=true`` a command answers the
 scan whose stamp it carries (``nd_driver`` stamps them so), and a late command is never taken
-for the answer to a newer scan. Lockstep with ``sim.dt`` = ``1 / scan_rate`` = 0.1 s is
+for the answer to a newer scan. With ``paired_start:=true`` a map and an initial pose stamped
+alike (``sut_adapter`` stamps them so) are one scenario: the world resets once, when both are in,
+whatever order they arrive in. Lockstep with ``sim.dt`` = ``1 / scan_rate`` = 0.1 s is
 the full model's own loop, step for step (``ambiegen campaign --stack nd``).
 """
 from __future__ import annotations
@@ -65,7 +68,8 @@ class RobotWorldNode:
             ("cmd_vel", "/cmd_vel", "velocity commands in"),
             ("odom", "/odom", "nav_msgs/Odometry out"),
             ("scan", "/scan", "sensor_msgs/LaserScan out"),
-            ("collision", "/collision", "std_msgs/Bool out, true while touching a wall ('' = none)"),
+            ("collision", "/collision", "diagnostic_msgs/DiagnosticArray out, stamped: ERROR while touching a wall, "
+                                        "else OK ('' = none)"),
             ("clock", "/clock", "rosgraph_msgs/Clock out ('' = none)"))}
         self.frames = {name: p(f"{name}_frame", default) for name, default in (
             ("map", "map"), ("odom", "odom"), ("base", "base_link"), ("scan", "base_scan"))}
@@ -78,6 +82,11 @@ class RobotWorldNode:
         cmd_timeout = float(p("cmd_timeout", 0.5, "simulated seconds a command is held (0 = until the next)"))
         self.resend_period = float(p("resend_period", 0.2, "lockstep: wall seconds before an unanswered scan is re-sent"))
         seed = int(p("seed", 0, "seed of the laser noise, restarted with every new map and teleport"))
+        self.paired = bool(p("paired_start", False, "a map and an initial pose with the same header stamp are one "
+                                                     "scenario, shown together once both are in (sut_adapter stamps "
+                                                     "them so); false: each resets the world when it arrives"))
+        self._pending_map: tuple | None = None  # paired_start: (stamp, grid, resolution, origin)
+        self._pending_pose: tuple | None = None  # paired_start: (stamp, x, y, yaw)
         cfg = sim_options(n, RobotSimConfig, WORLD_FIELDS, defaults={"dt": 0.02})
         for name, value in (("time_scale", self.time_scale), ("cmd_timeout", cmd_timeout)):
             if not value >= 0:
@@ -98,7 +107,7 @@ class RobotWorldNode:
         self.pub_scan = n.create_publisher("sensor_msgs/msg/LaserScan", topic["scan"], SENSOR)
         self.pub_tf = n.create_publisher("tf2_msgs/msg/TFMessage", "/tf", TF)
         self.pub_tf_static = n.create_publisher("tf2_msgs/msg/TFMessage", "/tf_static", TF_STATIC)
-        self.pub_collision = (n.create_publisher("std_msgs/msg/Bool", topic["collision"], DEFAULT)
+        self.pub_collision = (n.create_publisher("diagnostic_msgs/msg/DiagnosticArray", topic["collision"], DEFAULT)
                               if topic["collision"] else None)
         self.pub_clock = (n.create_publisher("rosgraph_msgs/msg/Clock", topic["clock"], CLOCK)
                           if topic["clock"] else None)
@@ -124,6 +133,11 @@ class RobotWorldNode:
     def on_map(self, msg: Any) -> None:
         info = msg.info
         grid = conversions.grid_from_message(msg)
+        if self.paired:
+            self._pending_map = (conversions.stamp_ns(msg.header), grid, float(info.resolution),
+                                 (float(info.origin.position.x), float(info.origin.position.y)))
+            self._start_paired()
+            return
         self.world.load_map(grid, float(info.resolution), (float(info.origin.position.x), float(info.origin.position.y)))
         self.node.logger.info(f"map {info.width}x{info.height} at {info.resolution:g} m: world reset (run {self.world.runs})")
         self._publish_state(scan=True)
@@ -132,10 +146,28 @@ class RobotWorldNode:
         pose = msg.pose.pose
         x, y = conversions.require_finite((pose.position.x, pose.position.y), "pose.pose.position")
         yaw = conversions.yaw_of(pose.orientation)
+        if self.paired:
+            self._pending_pose = (conversions.stamp_ns(msg.header), float(x), float(y), yaw)
+            self._start_paired()
+            return
         self.world.teleport(float(x), float(y), yaw)
         self.node.logger.info(f"teleported to ({x:.2f}, {y:.2f}, {math.degrees(yaw):.0f} deg)")
         if self.world.ready:
             self._publish_state(scan=True)
+
+    def _start_paired(self) -> None:
+        """The scenario's map and start pose, stamped alike, in either order: one reset, one start
+        state. (Shown one by one, a map arriving first would show the start twice, once at the last
+        run's pose: a stack could act on either, and a judge could start its clock at either.)"""
+        m, q = self._pending_map, self._pending_pose
+        if m is None or q is None or m[0] != q[0]:
+            return
+        self._pending_map = self._pending_pose = None
+        self.world.teleport(q[1], q[2], q[3])
+        self.world.load_map(m[1], m[2], m[3])
+        self.node.logger.info(f"map {m[1].shape[1]}x{m[1].shape[0]} at {m[2]:g} m with the start ({q[1]:.2f}, {q[2]:.2f}, "
+                              f"{math.degrees(q[3]):.0f} deg): world reset (run {self.world.runs})")
+        self._publish_state(scan=True)
 
     def on_cmd_vel(self, msg: Any) -> None:
         w = self.world
@@ -198,7 +230,8 @@ class RobotWorldNode:
             self.pub_scan.publish(self.last_scan_msg)
             self.last_scan_wall, self.scan_stamp = time.monotonic(), stamp
         if w.ready and self.pub_collision is not None and (scan or w.contact != self.last_collision):
-            self.pub_collision.publish(make("std_msgs/msg/Bool", data=bool(w.contact)))
+            self.pub_collision.publish(conversions.status_report(make, stamp, "collision", "touching a wall" if w.contact
+                                                                 else "", f["base"]))
             self.last_collision = w.contact
 
     def _resend(self) -> None:

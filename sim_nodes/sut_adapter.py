@@ -11,8 +11,14 @@ To the generator it is one more sim worker (heartbeats on ``/ambiegen/workers``,
   shows the robot at the start (within ``start_tolerance`` m and ``start_yaw_tolerance`` rad;
   samples from before that, a world still showing the last run, are ignored). It watches
   ``odom_topic`` (``nav_msgs/Odometry``, poses in the map frame, or relative to the start pose
-  with ``odom_frame:=start``), and optionally ``collision_topic`` (``std_msgs/Bool``, true = a
-  collision) and ``stall_topic`` (``std_msgs/String``: the stack gave up, and why: a ``stall``).
+  with ``odom_frame:=start``), and optionally ``collision_topic`` (the world's collision report)
+  and ``stall_topic`` (the stack gave up, and why: a ``stall``). Both are stamped statuses,
+  ``diagnostic_msgs/DiagnosticArray``: a status at level ERROR is the event (its message the
+  reason), every message a heartbeat up to its stamp. The verdict is decided in stamp order
+  (``ambiegen_ros.sims.stamp_order``): a pose sample is judged only once each of these streams has
+  passed its stamp or closed, so two events at one stamp resolve as in process (the world's
+  collision, then contact, the stack's stall flag, goal, loitering, time limit), whatever the
+  order in which the middleware delivers them.
   With ``plan_topic`` (``nav_msgs/Path``, the stack's global plan; Nav2: ``/plan``) the plans
   published after the goal are counted (``metrics["plans"]``, the last one's ``plan_length_m``),
   and a failure without any says so: a robot that never moves because its planner gave no path
@@ -70,6 +76,7 @@ from ambiegen_ros.sims import Outcome, reference
 from ambiegen_ros.sims.full_model import FullModelExecutor, sim_config
 from ambiegen_ros.sims.oracles import CarJudge, RobotJudge, ThermostatJudge, warm_up_judge
 from ambiegen_ros.sims.robot import polyline_length
+from ambiegen_ros.sims.stamp_order import DECISION, STATE, StampOrder
 from ambiegen_ros.nodes import run_node
 from sim_nodes.worker import WorkerEndpoint, load_problem, worker_node
 
@@ -196,8 +203,10 @@ class SutAdapter:
             self.topics = {
                 "map": p("map_topic", "/map"), "initialpose": p("initialpose_topic", "/initialpose"),
                 "goal": p("goal_topic", "/goal_pose"), "odom": p("odom_topic", "/odom"),
-                "collision": p("collision_topic", "", "optional std_msgs/Bool, true = collision ('' = none)"),
-                "stall": p("stall_topic", "", "optional std_msgs/String: the stack gave up, and why ('' = none)"),
+                "collision": p("collision_topic", "", "optional diagnostic_msgs/DiagnosticArray from the world, "
+                                                      "level ERROR = a collision, stamped ('' = none)"),
+                "stall": p("stall_topic", "", "optional diagnostic_msgs/DiagnosticArray from the stack every cycle, "
+                                              "level ERROR = it gave up, message = why ('' = none)"),
                 "plan": p("plan_topic", "", "optional nav_msgs/Path: the stack's global plan, counted after the goal "
                                             "(Nav2: /plan; '' = none)"),
             }
@@ -206,10 +215,6 @@ class SutAdapter:
                                                       self.topics["initialpose"], DEFAULT)
             self.pub_goal = n.create_publisher("geometry_msgs/msg/PoseStamped", self.topics["goal"], DEFAULT)
             n.create_subscription("nav_msgs/msg/Odometry", self.topics["odom"], self.on_odom, sample_qos)
-            if self.topics["collision"]:
-                n.create_subscription("std_msgs/msg/Bool", self.topics["collision"], self.on_collision, DEFAULT)
-            if self.topics["stall"]:
-                n.create_subscription("std_msgs/msg/String", self.topics["stall"], self.on_stall, DEFAULT)
             if self.topics["plan"]:
                 n.create_subscription("nav_msgs/msg/Path", self.topics["plan"], self.on_plan, DEFAULT)
         elif self.problem_name == "vehicle":
@@ -234,8 +239,14 @@ class SutAdapter:
         self.queue: deque[Job] = deque()
         self.job: Job | None = None
         self.samples: list[tuple] = []
-        self.collision = False
-        self.stalled: str | None = None
+        # the world's collision applies at its stamp; the stack's decision from the next sample on
+        self.order = StampOrder([(name, how) for name, how in (("collision", STATE), ("stall", DECISION))
+                                 if self.topics.get(name)])
+        for name in self.order.streams:  # every status kept: each one moves its stream's watermark
+            n.create_subscription("diagnostic_msgs/msg/DiagnosticArray", self.topics[name],
+                                  lambda msg, name=name: self.on_status(name, msg), sample_qos)
+        self.newest_stamp: int | None = None  # of the samples received so far (Nav2's result has no stamp)
+        self.nav2_stamp: int | None = None
         self.plans, self.last_plan = 0, None  # the stack's plans since the goal went out, the last one
         self.pre_goal: tuple | None = None  # the last sample before the goal went out
         self._fast = None
@@ -283,7 +294,9 @@ class SutAdapter:
         """Take the next scenario: first wait until the system under test is on the graph."""
         self.job = job
         self.samples.clear()
-        self.collision, self.stalled, self.pre_goal = False, None, None
+        self.order.reset()
+        self.pre_goal, self.newest_stamp, self.nav2_stamp = None, None, None
+        self._next_stream_check = 0.0
         self.plans, self.last_plan = 0, None
         job.started = time.monotonic()
         job.phase = "connecting"
@@ -300,8 +313,9 @@ class SutAdapter:
         else:
             pubs, out_topic = [self.pub_setpoint], self.topics["temperature"]
         missing = [f"nobody subscribes to {pub.topic}" for pub in pubs if pub.subscription_count() < 1]
-        if not self.node.publishers_info(out_topic):
-            missing.append(f"nobody publishes {out_topic}")
+        for topic in [out_topic] + [self.topics[name] for name in self.order.streams]:
+            if not self.node.publishers_info(topic):
+                missing.append(f"nobody publishes {topic}")
         if self.nav2 is not None:
             missing += self.nav2.missing()
         return missing
@@ -389,7 +403,7 @@ class SutAdapter:
                   float(pose.position.y), conversions.yaw_of(pose.orientation), float(msg.twist.twist.linear.x))
         if job.phase == "settle":
             self.pre_goal = sample
-        elif job.first is not None or self.samples or self._at_start(sample, job):
+        elif job.first is not None or self.samples or self.order.pending or self._at_start(sample, job):
             self.samples.append(sample)
 
     def on_temperature(self, msg: Any) -> None:
@@ -399,17 +413,15 @@ class SutAdapter:
         temperature = float(conversions.require_finite(msg.temperature, "temperature"))
         self.samples.append((conversions.stamp_ns(msg.header), time.monotonic_ns(), temperature))
 
-    def on_stall(self, msg: Any) -> None:
-        if self.job is not None and self.job.phase == "running" and self.stalled is None:
-            self.stalled = conversions.clip_text(msg.data) or "no reason given"
+    def on_status(self, name: str, msg: Any) -> None:
+        """A stamped status on the stall or collision topic: a heartbeat, or the stream's event."""
+        if self.job is not None:
+            stamp, problem = conversions.status_problem(msg)
+            self.order.message(name, time.monotonic_ns() if self.stamp_clock == "receive" else stamp, problem)
 
     def on_plan(self, msg: Any) -> None:
         if self.job is not None and self.job.phase in ("waiting", "running"):
             self.plans, self.last_plan = self.plans + 1, msg  # measured once, when the run ends
-
-    def on_collision(self, msg: Any) -> None:
-        if self.job is not None and self.job.phase == "running" and bool(msg.data):
-            self.collision = True
 
     def tick(self) -> None:
         job = self.job
@@ -438,7 +450,7 @@ class SutAdapter:
                 if self._at_start(self.pre_goal, job):  # the robot as the goal went out is sample 0
                     self.samples.insert(0, self.pre_goal)
             return
-        if self.samples:
+        if self.samples or self.order.pending:
             self._judge_samples(job, now)
             if job.judge.decided:
                 self.finish(job.judge.outcome())
@@ -449,30 +461,40 @@ class SutAdapter:
             self._publish_element(job.schedule[job.next_element])
             job.next_element += 1
         if self.nav2 is not None and self.nav2.result is not None and self.nav2.result["status"] != "succeeded":
-            r = self.nav2.result
-            job.judge.fail("nav2_aborted", f"Nav2 {r['status']} its goal after {job.judge.elapsed:.1f} s (error "
-                                           f"{r['error_code']}{': ' + r['error_msg'] if r['error_msg'] else ''})")
-            self.finish(job.judge.outcome())
-            return
-        if self.stalled is not None:
-            job.judge.fail("stall", f"the system under test gave up ({self.stalled}) on {self.topics['stall']} "
-                                    f"after {job.judge.elapsed:.1f} s")
-            self.finish(job.judge.outcome())
-            return
-        if self.collision:
-            job.judge.fail("collision", f"collision reported on {self.topics['collision']} "
-                                        f"after {job.judge.elapsed:.1f} s")
-            self.finish(job.judge.outcome())
-            return
+            # Nav2's result carries no stamp: it counts at the newest pose received before it, once
+            # every sample up to there is judged (an earlier verdict from them stands)
+            if self.nav2_stamp is None:
+                self.nav2_stamp = self.newest_stamp if self.newest_stamp is not None else -1
+            if self.order.watermark >= self.nav2_stamp and not self.samples:
+                r = self.nav2.result
+                job.judge.fail("nav2_aborted", f"Nav2 {r['status']} its goal after {job.judge.elapsed:.1f} s (error "
+                                               f"{r['error_code']}{': ' + r['error_msg'] if r['error_msg'] else ''})")
+                self.finish(job.judge.outcome())
+                return
+        if self.order.pending and now >= self._next_stream_check:
+            self._close_deserted_streams(now)
         if job.phase == "waiting" and now - job.go > self.start_timeout:
             job.judge.finish(f"no {what} within {self.start_timeout:g} s")
         elif job.phase == "running" and now - job.last_sample > self.silence_timeout:
-            job.judge.finish(f"{what} stopped after {job.judge.elapsed:.1f} s (simulated) without a verdict")
+            job.judge.finish(f"{what} stopped after {job.judge.elapsed:.1f} s (simulated) without a verdict"
+                             + self._held_back())
         elif now - job.go > self.wall_slack * job.limit_sim / self.time_scale + self.start_timeout:
             job.judge.finish(f"too slow: {job.judge.elapsed:.1f} of {job.limit_sim:.0f} simulated s after "
-                             f"{now - job.go:.1f} s wall (time_scale {self.time_scale:g})")
+                             f"{now - job.go:.1f} s wall (time_scale {self.time_scale:g})" + self._held_back())
         if job.judge.decided:
             self.finish(job.judge.outcome())
+
+    def _held_back(self) -> str:
+        waiting = self.order.waiting_for()
+        return (f"; {len(self.order.pending)} samples held back, waiting for "
+                f"{', '.join(self.topics[name] for name in waiting)} to pass their stamps") if waiting else ""
+
+    def _close_deserted_streams(self, now: float) -> None:
+        """A status stream whose publisher left the graph holds no sample back any more."""
+        self._next_stream_check = now + 0.5
+        for name in self.order.waiting_for():
+            if not self.node.publishers_info(self.topics[name]):
+                self.order.close(name, f"nobody publishes {self.topics[name]}")
 
     def _at_start(self, sample: tuple | None, job: Job) -> bool:
         """Is this pose sample the robot at the scenario's start (within ``start_tolerance``)?
@@ -488,15 +510,27 @@ class SutAdapter:
         return math.hypot(x, y) <= self.start_tolerance and not turned > self.start_yaw_tolerance >= 0
 
     def _judge_samples(self, job: Job, now: float) -> None:
-        rows = np.array(self.samples, dtype=object)
-        self.samples.clear()
+        """The samples received, judged once every status stream has passed their stamps."""
+        if self.samples:
+            job.phase, job.last_sample = "running", now
+            key = 1 if self.stamp_clock == "receive" else 0  # no stamps to trust: arrival is the only order
+            for row in self.samples:
+                self.order.sample(int(row[key]), row)
+                self.newest_stamp = int(row[key]) if self.newest_stamp is None else max(self.newest_stamp, int(row[key]))
+            self.samples.clear()
+        if job.first is None:
+            # with the stack's status, the run starts at the state it first acted on (sample 0)
+            if "stall" in self.order.streams and not self.order.start_at_first("stall"):
+                return
+            row = self.order.pending[0][1]
+            job.first, job.anchor = (int(row[0]), int(row[1])), row[1] / 1e9
+        released = self.order.release()
+        if not released:
+            return
+        rows = np.array([row for _, row, _ in released], dtype=object)
+        events = [what for _, _, what in released]
         stamps = rows[:, 0].astype(np.int64)
         recv = rows[:, 1].astype(np.int64)
-        if job.first is None:
-            job.first = (int(stamps[0]), int(recv[0]))
-            job.anchor = recv[0] / 1e9
-            job.phase = "running"
-        job.last_sample = now
         t = sample_times(stamps, recv, job.first, self.stamp_clock, self.time_scale)
         keep = np.zeros(len(t), dtype=bool)  # strictly increasing times only (drops duplicates, reordering)
         last = job.t_prev
@@ -508,6 +542,7 @@ class SutAdapter:
             return
         vals = rows[keep, 2:].astype(float)
         t = t[keep]
+        events = [e for e, k in zip(events, keep) if k]
         if self.problem_name == "thermostat":
             job.judge.add(t, vals[:, 0])
             return
@@ -515,7 +550,9 @@ class SutAdapter:
         if self.odom_frame == "start":
             x, y, yaw = to_map_frame(x, y, yaw, job.start_pose)
         if self.problem_name == "robot":
-            job.judge.add(t, x, y, yaw)
+            collision = self.topics["collision"]
+            job.judge.add(t, x, y, yaw, stall=[e.get("stall") for e in events],
+                          collision=[f"reported on {collision}" if "collision" in e else None for e in events])
             if math.isfinite(job.judge.time_limit):
                 job.limit_sim = max(job.limit_sim, job.judge.time_limit)
         else:
@@ -538,6 +575,10 @@ class SutAdapter:
             outcome.metrics = {**outcome.metrics, "plans": self.plans, "plan_length_m": length}
             if outcome.failed and not self.plans:
                 outcome.detail = f"{outcome.detail}; no plan on {self.topics['plan']} since the goal"
+        gave_up = self.order.streams.get("stall")
+        if outcome.failure_kind == "stall" and gave_up is not None and gave_up.event is not None \
+                and outcome.metrics.get("stall_cause") == gave_up.event[1]:
+            outcome.detail = f"{outcome.detail} (the system under test gave up, on {self.topics['stall']})"
         if self.reference and outcome.failed:  # does the in-process reference pass the same scenario?
             outcome = reference.certify(outcome, reference.after(self.problem, job.scenario, self.oracle, outcome))
         wall = time.monotonic() - job.started

@@ -11,6 +11,9 @@ The checks, each failure naming the file and line of the import:
 * no circle between modules (a strongly connected component of the import graph), shown as a
   path ``a -> b -> a``;
 * no import from a lower floor to a higher one (``FLOORS``, ``ONLY``);
+* nothing outside ``cli`` imports the command line but the console scripts' launcher
+  (``CLI_LAUNCHERS``): a ``__main__`` of a library package (``python -m ambiegen_ros.doctor``) is a
+  launcher on the floors, yet it runs the library, so it must not reach into ``cli`` either;
 * no ROS library below the ``ros`` floor, and the middleware (rclpy, Cyclone DDS) imported only
   by the transport seam (``SEAM_EXCEPTIONS`` lists the known bypasses, each with its reason).
 """
@@ -63,6 +66,12 @@ ONLY: dict[str, set[str]] = {
     "ambiegen_ros": set(),
     "ambiegen_ros.core": {"ambiegen_ros"},  # and core itself: its version stamp in run records
     "ambiegen_ros.deps": set(),
+}
+
+# The only modules outside ``cli`` that import it (module -> why); an entry no longer used fails too.
+CLI = "ambiegen_ros.cli"
+CLI_LAUNCHERS = {
+    "ambiegen_ros.entry": "the console scripts' launcher: `ambiegen` runs ambiegen_ros.cli (and its doctor first)",
 }
 
 # Libraries of the ROS world: none below floor 2 (``ros``), so floors 0-1 run without ROS.
@@ -282,6 +291,36 @@ def test_imports_point_down_the_floors():
 
 
 
+def cli_import_violations() -> tuple[list[str], set[str]]:
+    """Imports of ``ambiegen_ros.cli`` from outside it, but by ``CLI_LAUNCHERS``; and the launchers
+    that did import it."""
+    out, used = [], set()
+    for module, edges in sorted(import_graph().items()):
+        if unit_of(module) == CLI or module == CLI or module.startswith(CLI + "."):
+            continue
+        for target, line in edges:
+            if target == CLI or target.startswith(CLI + "."):
+                if module in CLI_LAUNCHERS:
+                    used.add(module)
+                else:
+                    out.append(f"{_where(module, line)}: {module} imports {target}: only the launcher "
+                               f"({', '.join(sorted(CLI_LAUNCHERS))}) imports the command line; the library "
+                               "owns the code and cli imports it")
+    return out, used
+
+
+def assert_clean(found: tuple[list[str], set], allowed, name: str) -> None:
+    """No violation, and every allowed exception still in use (a stale one is removed)."""
+    violations, used = found
+    assert not violations, "\n".join(violations)
+    stale = sorted(set(allowed) - used)
+    assert not stale, f"{name} no longer needed, remove them: {stale}"
+
+
+def test_only_the_launcher_imports_the_command_line():
+    assert_clean(cli_import_violations(), CLI_LAUNCHERS, "CLI_LAUNCHERS (they no longer import ambiegen_ros.cli)")
+
+
 def ros_library_violations() -> tuple[list[str], set[tuple[str, str]]]:
     """Imports of ROS libraries below floor 2, and of the middleware outside the seam; and the
     ``SEAM_EXCEPTIONS`` that were used."""
@@ -304,17 +343,15 @@ def ros_library_violations() -> tuple[list[str], set[tuple[str, str]]]:
 
 
 def test_ros_libraries_stay_on_the_ros_floors_and_the_middleware_behind_the_seam():
-    violations, used = ros_library_violations()
-    assert not violations, "\n".join(violations)
-    stale = sorted(set(SEAM_EXCEPTIONS) - used)
-    assert not stale, f"SEAM_EXCEPTIONS no longer needed, remove them: {stale}"
+    assert_clean(ros_library_violations(), SEAM_EXCEPTIONS, "SEAM_EXCEPTIONS")
+
 
 def test_the_checks_see_relative_lazy_and_upward_imports(tmp_path, monkeypatch):
     """The walker itself, on a made-up tree: a relative import inside a function, an
     ``import_module`` literal and a ``from pkg import submodule`` are resolved; the circle, the
     upward arrow and ROS below its floor are reported with file and line."""
     pkg = tmp_path / "ambiegen_ros"
-    for sub in ("core", "sims", "cli"):
+    for sub in ("core", "sims", "cli", "doctor"):
         (pkg / sub).mkdir(parents=True)
         (pkg / sub / "__init__.py").write_text("")
     (tmp_path / "sim_nodes").mkdir()
@@ -323,6 +360,8 @@ def test_the_checks_see_relative_lazy_and_upward_imports(tmp_path, monkeypatch):
     (pkg / "sims" / "b.py").write_text("from importlib import import_module\nimport_module('ambiegen_ros.core.a')\n"
                                        "import rclpy.node\n")
     (pkg / "cli" / "c.py").write_text("from ambiegen_ros.core import a\n")
+    (pkg / "doctor" / "__main__.py").write_text("from ..cli.c import a\n")  # a library's launcher into cli
+    (pkg / "doctor" / "report.py").write_text("def f():\n    import ambiegen_ros.cli\n")  # the library into cli
     monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path)
     for cached in (_modules, all_imports, import_graph):
         cached.cache_clear()
@@ -337,9 +376,15 @@ def test_the_checks_see_relative_lazy_and_upward_imports(tmp_path, monkeypatch):
         assert "(ambiegen_ros/core/a.py:2)" in _describe_cycle(*cycles[0])
         assert layer_violations() == [
             "ambiegen_ros/core/a.py:2: ambiegen_ros.core.a imports ambiegen_ros.sims.b: ambiegen_ros.core may "
-            "import only itself and ambiegen_ros"]
+            "import only itself and ambiegen_ros",
+            "ambiegen_ros/doctor/report.py:2: ambiegen_ros.doctor.report imports ambiegen_ros.cli: ambiegen_ros.doctor "
+            "(floor 3) imports upwards into ambiegen_ros.cli (floor 4)"]  # the floors miss the __main__ one
         assert ros_library_violations()[0] == [
             "ambiegen_ros/sims/b.py:3: ambiegen_ros.sims.b imports rclpy.node: floor 1 runs without ROS"]
+        cli_lines, _ = cli_import_violations()
+        assert [line.split(": only")[0] for line in cli_lines] == [
+            "ambiegen_ros/doctor/__main__.py:1: ambiegen_ros.doctor.__main__ imports ambiegen_ros.cli.c",
+            "ambiegen_ros/doctor/report.py:2: ambiegen_ros.doctor.report imports ambiegen_ros.cli"]
     finally:
         for cached in (_modules, all_imports, import_graph):
             cached.cache_clear()

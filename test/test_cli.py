@@ -165,6 +165,66 @@ def test_config_file_sets_problem_numbers(tmp_path):
     assert out.returncode == 2 and "gravity" in out.stderr
 
 
+ROOT = Path(__file__).resolve().parents[1]
+SMALL = ROOT / "config" / "robot_small.yaml"  # robot maps with the nearer goal (14, 14)
+
+
+def test_evaluate_scores_with_the_config_files_problem_config(tmp_path):
+    """`--config` gives `evaluate` the run config's problem_config: the same map scored with
+    config/robot_small.yaml's nearer goal gets another F1, the one `get_problem` with that file's
+    problem_config gives; a suite line and `show` take the same file, one of another problem is refused."""
+    import yaml
+
+    from ambiegen_ros.core.scenario import Scenario
+    from ambiegen_ros.problems import get_problem
+
+    scenario = robot_scenario()
+    path = write(tmp_path, "map.json", scenario)
+    plain = ambiegen("evaluate", str(path), "--json")
+    small = ambiegen("evaluate", str(path), "--json", "--config", str(SMALL))
+    assert plain.returncode == 0 and small.returncode == 0, plain.stderr + small.stderr
+    f1_plain, f1_small = json.loads(plain.stdout)["f1"], json.loads(small.stdout)["f1"]
+    problem_config = yaml.safe_load(SMALL.read_text())["problem_config"]
+    assert problem_config["goal"] == [14, 14]
+    expected = get_problem("robot", problem_config)
+    row = expected.evaluate_scenarios([expected.parse(Scenario.parse_json(json.dumps(scenario)))]).row(0)
+    assert f1_small == pytest.approx(row["f1"]) and f1_small != pytest.approx(f1_plain)
+    # a suite line is scored with the same file
+    suite = write(tmp_path, "maps.jsonl", json.dumps(scenario) + "\n")
+    line = json.loads(ambiegen("evaluate", str(suite), "--json", "--config", str(SMALL)).stdout)
+    assert line["f1"] == pytest.approx(f1_small)
+    # a config of another problem is one line, exit 2; in a suite that line alone is refused
+    other = ambiegen("evaluate", str(path), "--config", str(ROOT / "config" / "thermostat.yaml"))
+    assert other.returncode == 2 and "thermostat" in other.stderr and "Traceback" not in other.stderr
+    assert len(other.stderr.strip().splitlines()) == 1
+    lines = ambiegen("evaluate", str(suite), "--json", "--config", str(ROOT / "config" / "thermostat.yaml"))
+    assert lines.returncode == 2 and "thermostat" in json.loads(lines.stdout)["error"]
+    missing = ambiegen("evaluate", str(path), "--config", str(tmp_path / "none.yaml"))
+    assert missing.returncode == 2 and "no such file" in missing.stderr
+    drawn = ambiegen("show", str(path), "--config", str(SMALL), "-o", str(tmp_path / "map.png"))
+    assert drawn.returncode == 0 and (tmp_path / "map.png").exists(), drawn.stderr
+
+
+def test_every_command_that_scores_or_runs_a_scenario_takes_the_same_config_option():
+    """One `--config` (cli/common.add_config_option) on every command that searches, scores or runs."""
+    from cli_shape import parser_shape  # test/helpers (pytest.ini's pythonpath)
+
+    from ambiegen_ros.cli import build_parser
+
+    commands = parser_shape(build_parser())["commands"]
+    options = {name: next((a for a in cmd["actions"] if a["dest"] == "config"), None) for name, cmd in commands.items()}
+    takes = sorted(name for name, action in options.items() if action)
+    assert takes == ["campaign", "evaluate", "execute", "experiment", "search", "show"]
+    assert len({json.dumps(options[name], sort_keys=True) for name in takes}) == 1
+
+
+def test_execute_runs_with_the_config_files_goal(tmp_path):
+    path = write(tmp_path, "map.json", robot_scenario())
+    runs = [json.loads(ambiegen("execute", str(path), "--json", *extra).stdout)
+            for extra in ([], ["--config", str(SMALL)])]
+    assert runs[0]["metrics"]["route_length"] != runs[1]["metrics"]["route_length"]
+
+
 @pytest.mark.parametrize("module", ["ambiegen_ros.nodes.generator", "ambiegen_ros.nodes.recorder",
                                     "ambiegen_ros.nodes.replay", "sim_nodes.car_sim", "sim_nodes.sut_adapter"])
 def test_every_node_answers_help_without_starting(module):

@@ -158,3 +158,29 @@ def test_installed_messages_compared_with_ours(tmp_path, clean_env):
     victim.unlink()
     check = doctor.check_messages()
     assert check.status == "fail" and f"{typename} missing from the installed package" in check.detail
+
+
+def test_python_m_doctor_is_the_librarys_own_main():
+    """`python -m ambiegen_ros.doctor` runs ``ambiegen_ros.doctor.main`` (the library owns it; the
+    command line imports it, never the other way round: test_architecture.py), with the same
+    option and exit statuses as `ambiegen doctor`."""
+    env = {k: v for k, v in os.environ.items() if k not in ROS_VARS}
+    env["PYTHONPATH"] = str(REPO)
+
+    def run(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-m", "ambiegen_ros.doctor", *args], cwd=REPO, env=env,
+                              capture_output=True, text=True, timeout=300)
+
+    got = run("--json")
+    assert got.returncode == 0, got.stdout + got.stderr
+    assert json.loads(got.stdout)["ok"] is True
+    shown = run("--help")
+    assert shown.returncode == 0 and shown.stdout.startswith("usage: python -m ambiegen_ros.doctor [-h] [--json]")
+    bad = run("--jsn")
+    assert bad.returncode == 2 and bad.stderr.splitlines()[-1] == (
+        "python -m ambiegen_ros.doctor: error: unrecognized arguments: --jsn")
+    # the launcher's `ambiegen doctor` (ambiegen_ros.entry) runs the same main under its own name
+    launched = subprocess.run([sys.executable, "-c", "import sys; from ambiegen_ros.entry import launch; "
+                               "sys.exit(launch('ambiegen', ['doctor', '--bogus']))"], cwd=REPO, env=env,
+                              capture_output=True, text=True, timeout=300)
+    assert launched.returncode == 2 and "ambiegen doctor: error: unrecognized arguments: --bogus" in launched.stderr

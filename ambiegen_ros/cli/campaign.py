@@ -10,7 +10,7 @@ import os
 import sys
 from pathlib import Path
 
-from .common import BadInput
+from .common import BadInput, add_config_option
 
 
 def register(sub) -> None:
@@ -41,7 +41,7 @@ def register(sub) -> None:
                    help="surrogate: search with the surrogate, then execute the suite; in_the_loop: every F1 from the sims")
     p.add_argument("--sim-model", default="full", choices=("full", "surrogate"),
                    help="what the sim workers run: full-model simulator + failure oracle (default) or the surrogate")
-    p.add_argument("--config", metavar="FILE.yaml", help="run config (search settings + problem_config)")
+    add_config_option(p)
     p.add_argument("--profile", choices=PROFILES,
                    help="fidelity profile of the generator and every sim worker (default: the config's, else replication)")
     p.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID for all nodes (default: inherited, else 0)")
@@ -51,7 +51,7 @@ def register(sub) -> None:
                    "subnet (sim workers on other machines; add ROS_STATIC_PEERS where multicast does not reach), "
                    "system_default (the middleware's own settings)")
     p.add_argument("--remote-workers", type=int, default=0, metavar="N",
-                   help="sim workers started on other machines (see README 'Running on several machines'): "
+                   help="sim workers started on other machines (see docs/multihost_security.md#running-on-several-machines): "
                    "the generator waits for them as well; --workers may then be 0")
     p.add_argument("--result-timeout", type=float, default=30.0, help="seconds to wait for each result")
     p.add_argument(
@@ -161,8 +161,9 @@ def cmd_campaign(args) -> int:
 
 def cmd_replay(args) -> int:
     from ..campaign import SIM_MODULES, ProcessGroup, ros_params
+    from ..nodes import unusable_messages
     from ..nodes.replay import Replay, recorded_scenarios
-    from ..ros.transport import create_node
+    from ..ros.transport import TransportError, create_node
 
     if not Path(args.log).exists():
         raise BadInput(f"{args.log}: no such file")
@@ -170,6 +171,9 @@ def cmd_replay(args) -> int:
         raise BadInput(f"--record {args.record} already exists; refusing to overwrite it (another name, or --overwrite)")
     if args.execute and args.report and Path(args.report).exists() and not args.overwrite:
         raise BadInput(f"--report {args.report} already exists; refusing to overwrite it (another name, or --overwrite)")
+    missing = unusable_messages()  # the replay node's own check, before any process starts
+    if missing:
+        raise BadInput(missing)
     if args.domain_id is not None:
         os.environ["ROS_DOMAIN_ID"] = str(args.domain_id)
     group = ProcessGroup(Path(args.report or args.log).parent / "replay_logs", dict(os.environ))
@@ -186,8 +190,11 @@ def cmd_replay(args) -> int:
         expected = max(args.workers, 1) + bool(args.record)
     params = {"mode": "execute" if args.execute else "publish", "rate": args.rate, "min_subscribers": expected,
               "result_timeout": args.result_timeout, "report": args.report or "", "overwrite": args.overwrite}
-    node = create_node("replay", argv=["replay"], parameter_overrides=params)
-    try:
+    try:  # the node inside: a backend that cannot start (e.g. rclpy without ambiegen_msgs) stops the group too
+        try:
+            node = create_node("replay", argv=["replay"], parameter_overrides=params)
+        except TransportError as exc:
+            raise BadInput(str(exc)) from None
         replay = Replay(node=node, log=args.log)
         code = replay.run()
     finally:

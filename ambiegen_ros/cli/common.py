@@ -1,5 +1,6 @@
-"""What several `ambiegen` commands share: the ``--profile`` option, the progress line, the exit
-status of bad input, and building a search from flags.
+"""What several `ambiegen` commands share: the ``--profile`` and ``--config`` options, the progress
+line, the exit status of bad input, building a search from flags, and reading a scenario with the
+problem that scores it.
 
 Imports stay light: the command line starts before any command decides what it needs.
 """
@@ -23,6 +24,33 @@ def add_profile_option(parser: argparse.ArgumentParser) -> None:
         help="fidelity profile: replication (default; the authors' replication code, which made the paper's "
         "tables) or refined (the paper's equations and competition road rules)",
     )
+
+
+def add_config_option(parser: argparse.ArgumentParser) -> None:
+    """``--config``: the one run-config option of every command that searches, scores or runs."""
+    parser.add_argument(
+        "--config", metavar="FILE.yaml",
+        help="run config: its problem_config sets the problem's numbers (e.g. config/robot_small.yaml: a nearer "
+        "robot goal); its search settings apply where the command searches",
+    )
+
+
+def scenario_problem(args: argparse.Namespace, data: dict[str, Any]) -> Any:
+    """The problem that scores or runs a parsed scenario: its own ``problem``, with --config's
+    problem_config and --profile (``run_config.scenario_problem``)."""
+    from ..run_config import scenario_problem as build
+
+    return build(data, getattr(args, "config", None), getattr(args, "profile", None))
+
+
+def load_scenario(args: argparse.Namespace, path: str) -> tuple[Any, Any]:
+    """Read and validate a scenario JSON file (``-``: standard input) -> (problem, scenario)."""
+    from ..core.scenario import Scenario
+    from ..problems.scenario_file import read_text
+
+    data = Scenario.parse_json(read_text(path))
+    problem = scenario_problem(args, data)
+    return problem, problem.parse(data)
 
 
 def build_search(args: argparse.Namespace) -> tuple[Any, Any]:
@@ -67,4 +95,5 @@ class Progress:
             sys.stderr.write("\n")
 
 
-__all__ = ["BadInput", "EXIT_BAD_INPUT", "Progress", "add_profile_option", "build_search"]
+__all__ = ["BadInput", "EXIT_BAD_INPUT", "Progress", "add_config_option", "add_profile_option", "build_search",
+           "load_scenario", "scenario_problem"]

@@ -1,5 +1,9 @@
-"""`ambiegen doctor`: the checks of ``ambiegen_ros.doctor`` as a subcommand, and ``main`` for the
-launcher and ``python -m ambiegen_ros.doctor``, which run it before anything else could break."""
+"""`ambiegen doctor`: the checks of ``ambiegen_ros.doctor`` as a subcommand.
+
+The library owns the checks and the stand-alone ``main`` (``python -m ambiegen_ros.doctor``); this
+module only adds the subcommand, and ``main`` for the launcher, which runs ``ambiegen doctor``
+before anything else could break (``ambiegen_ros.entry``).
+"""
 from __future__ import annotations
 
 import argparse
@@ -11,21 +15,16 @@ def cmd_doctor(args: argparse.Namespace) -> int:
     return report(run_checks(), as_json=args.json)
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--json", action="store_true", help="print one JSON object (ok, checks[])")
-
-
 def register(sub) -> None:
     p = sub.add_parser(
         "doctor", help="check this machine: transport backend, ROS environment, dependency versions, numba, messages"
     )
-    add_arguments(p)
+    p.add_argument("--json", action="store_true", help="print one JSON object (ok, checks[])")
     p.set_defaults(func=cmd_doctor)
 
 
 def main(argv: list[str] | None = None) -> int:
-    from .. import doctor
+    """``ambiegen doctor`` as the launcher runs it: the library's ``main`` under this name."""
+    from ..doctor import main as doctor_main
 
-    parser = argparse.ArgumentParser(prog="python -m ambiegen_ros.doctor", description=doctor.__doc__.split("\n")[0])
-    add_arguments(parser)
-    return cmd_doctor(parser.parse_args(argv))
+    return doctor_main(argv, prog="ambiegen doctor")

@@ -8,15 +8,13 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from .common import EXIT_BAD_INPUT, BadInput, add_profile_option
+from .common import EXIT_BAD_INPUT, BadInput, add_config_option, add_profile_option, load_scenario, scenario_problem
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    from ..problems.scenario_file import load_scenario_file
-
     if is_suite_file(args.scenario):
         return evaluate_suite(args)
-    problem, scenario = load_scenario_file(args.scenario, args.profile)
+    problem, scenario = load_scenario(args, args.scenario)
     row = problem.evaluate_scenarios([scenario]).row(0)
     out = {"problem": problem.name, "profile": problem.profile, **row}
     if args.json:
@@ -40,13 +38,17 @@ def evaluate_suite(args: argparse.Namespace) -> int:
     """One scenario per line -> one JSON object per line, same order; each problem one batch.
 
     A line may also be a record that holds its scenario under ``"scenario"`` (a run's suite
-    entry, a reference verdict). A bad line is answered by ``{"line": k, "error": ...}`` and
-    makes the exit status 2; the others are still evaluated.
+    entry, a reference verdict). A bad line (also one of another problem than --config's) is
+    answered by ``{"line": k, "error": ...}`` and makes the exit status 2; the others are still
+    evaluated. An unreadable --config stops the command before any line.
     """
     from ..core.attributes import ScenarioError
+    from ..core.config import load_config_file
+    from ..core.errors import ConfigError
     from ..core.scenario import Scenario
-    from ..problems.scenario_file import read_text, scenario_problem
+    from ..problems.scenario_file import read_text
 
+    load_config_file(args.config)
     lines = read_text(args.scenario).splitlines()
     results: dict[int, dict[str, Any]] = {}
     groups: dict[str, tuple[Any, list[int], list[Any]]] = {}
@@ -57,13 +59,14 @@ def evaluate_suite(args: argparse.Namespace) -> int:
             data = Scenario.parse_json(text)
             if "elements" not in data and isinstance(data.get("scenario"), dict):
                 data = data["scenario"]
-            name = data.get("problem") if isinstance(data.get("problem"), str) else repr(data.get("problem"))
+            named = data.get("problem")
+            name = named if isinstance(named, str) else repr(named)
             if name not in groups:
-                groups[name] = (scenario_problem(data, args.profile), [], [])
+                groups[name] = (scenario_problem(args, data), [], [])
             problem, numbers, scenarios = groups[name]
             scenarios.append(problem.parse(data))
             numbers.append(k)
-        except (ScenarioError, BadInput) as exc:
+        except (ScenarioError, BadInput, ConfigError) as exc:
             results[k] = {"line": k, "error": str(exc)}
     for problem, numbers, scenarios in groups.values():
         ev = problem.evaluate_scenarios(scenarios)
@@ -88,7 +91,6 @@ def evaluate_suite(args: argparse.Namespace) -> int:
 
 
 def cmd_show(args: argparse.Namespace) -> int:
-    from ..problems.scenario_file import load_scenario_file
     from ..viz import save_scenario_plot
     from ..viz.runs import plot_run
 
@@ -96,10 +98,13 @@ def cmd_show(args: argparse.Namespace) -> int:
     if target.is_dir():
         if not (target / "suite.json").exists():
             raise BadInput(f"{target}: not a run directory (no suite.json)")
+        if args.config:
+            raise BadInput("--config: a run directory is drawn with its own config (config.json); "
+                           "--config is for a scenario file")
         written = plot_run(target, out=Path(args.output) if args.output else None)
         print("\n".join(str(p) for p in written))
         return 0
-    problem, scenario = load_scenario_file(str(target), args.profile)
+    problem, scenario = load_scenario(args, str(target))
     output = Path(args.output or target.with_suffix(".png"))
     if args.execute:
         from ..sims.full_model import full_model_executor
@@ -121,6 +126,7 @@ def register(sub) -> None:
     p.add_argument("scenario", metavar="SCENARIO.json|SCENARIOS.jsonl|-",
                    help="one scenario (.json) or JSON Lines (.jsonl, or - for standard input), evaluated as one batch")
     p.add_argument("--json", action="store_true", help="print JSON: one object (per line for a suite)")
+    add_config_option(p)
     add_profile_option(p)
     p.set_defaults(func=cmd_evaluate)
 
@@ -129,5 +135,6 @@ def register(sub) -> None:
     p.add_argument("-o", "--output", metavar="FILE.png", help="output picture (run dirs: a file prefix)")
     p.add_argument("--execute", action="store_true", help="run the scenario on its full-model simulator and draw the trajectory")
     p.add_argument("--seed", type=int, default=0, help="simulator seed for --execute (default 0)")
+    add_config_option(p)
     add_profile_option(p)
     p.set_defaults(func=cmd_show)

@@ -1,25 +1,26 @@
-"""`ambiegen execute SCENARIO.json [--json] [--seed S] [--profile P] [--set OPTION=VALUE ...]`.
+"""`ambiegen execute SCENARIO.json [--json] [--seed S] [--config FILE.yaml] [--profile P] [--set OPTION=VALUE ...]`.
 
 Runs one scenario on its full-model simulator (no ROS) and prints the verdict; with ``--json``
 exactly one object ``{"problem", "valid", "failed", "failure_kind", "verdict", "reference",
 "metrics", "profile"}`` (failure_kind null when the run passed; verdict PASS, FAIL(kind) or
-INVALID_TEST(reason): a failure counts only when the problem's reference passes the scenario). Bad input (unreadable or malformed scenario, unknown or
-out-of-domain option) is one line and exit status 2.
+INVALID_TEST(reason): a failure counts only when the problem's reference passes the scenario). ``--config``: the
+problem_config of a run config (e.g. ``config/robot_small.yaml``'s nearer goal), as the run that made the scenario
+used. Bad input (unreadable or malformed scenario or config, unknown or out-of-domain option) is one line and
+exit status 2.
 """
 from __future__ import annotations
 
 import argparse
 import json
 
-from .common import add_profile_option
+from .common import add_config_option, add_profile_option, load_scenario
 
 
 def cmd_execute(args: argparse.Namespace) -> int:
-    from ..problems.scenario_file import load_scenario_file
     from ..sims.full_model import full_model_executor
     from ..sims.options import parse_options, result_json
 
-    problem, scenario = load_scenario_file(args.scenario, args.profile)
+    problem, scenario = load_scenario(args, args.scenario)
     executor = full_model_executor(problem, **parse_options(args.set))
     outcome = executor.execute(scenario, seed=args.seed)
     out = result_json(problem.name, outcome)
@@ -48,5 +49,6 @@ def register(sub) -> None:
     p.add_argument("--set", action="append", default=[], metavar="OPTION=VALUE",
                    help="simulator option, e.g. oob_tolerance=0.95, controller=pid, or reference=false "
                         "(no reference check: the old verdicts) (repeatable)")
+    add_config_option(p)
     add_profile_option(p)
     p.set_defaults(func=cmd_execute)

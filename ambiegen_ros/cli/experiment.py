@@ -5,7 +5,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..core.errors import BadInput
+from .common import BadInput, add_config_option
 
 
 def _spec_from_args(args: argparse.Namespace):
@@ -80,7 +80,7 @@ def register(sub) -> None:
     p.add_argument("--profile", choices=PROFILES, help="fidelity profile of the problem (default: replication)")
     p.add_argument("--seed", type=int, default=0, help="base seed; run k uses seed + k (default 0)")
     p.add_argument("--resume", action="store_true", help="continue an experiment in --out: skip runs already done")
-    p.add_argument("--config", metavar="FILE.yaml", help="search settings and problem_config overrides")
+    add_config_option(p)
     p.add_argument("--set", action="append", default=[], metavar="OPTION=VALUE",
                    help="--full-model: simulator option (repeatable), as for `ambiegen execute`")
     p.add_argument("--distinct-distance", type=float, default=0.0,

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import BadInput, Progress, add_profile_option, build_search
+from .common import BadInput, Progress, add_config_option, add_profile_option, build_search
 
 
 def cmd_search(args: argparse.Namespace) -> int:
@@ -45,7 +45,7 @@ def register(sub) -> None:
     p.add_argument("--offspring", type=int, help="offspring per generation (default: the paper's)")
     p.add_argument("--seed", type=int, help="random seed (default: drawn and recorded)")
     p.add_argument("--reference", choices=REFERENCES, help="F2 reference: parent (paper) or nearest front member")
-    p.add_argument("--config", metavar="FILE.yaml", help="search settings and problem_config overrides")
+    add_config_option(p)
     add_profile_option(p)
     p.add_argument("--out", required=True, metavar="DIR", help="run directory to write (an existing run is refused)")
     p.add_argument("--overwrite", action="store_true", help="replace the run already in --out")

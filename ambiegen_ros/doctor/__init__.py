@@ -4,16 +4,20 @@ Checks the transport backend that nodes would use (and why: rclpy's import error
 ROS environment (RMW_IMPLEMENTATION, ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE: both what it
 gives nodes and what ``ambiegen campaign`` uses, ROS_STATIC_PEERS), every dependency against its
 minimum (``deps``), whether numba loads, and whether an installed ``ambiegen_msgs`` (``share/ambiegen_msgs/msg`` on AMENT_PREFIX_PATH) has the
-message definitions and type hashes our nodes use. Exit status 0 when nothing is broken, 1 when
-something is (warnings alone keep 0); ``--json`` prints the same as one JSON object.
+message definitions and type hashes our nodes use; on the rclpy backend, also whether the Python
+classes of ``ambiegen_msgs`` import (a plain ``colcon build`` skips that package). Exit status 0
+when nothing is broken, 1 when something is (warnings alone keep 0); ``--json`` prints the same as
+one JSON object.
 
 It imports nothing that a broken environment could break before the checks run, so
-``python -m ambiegen_ros.doctor`` works even where ``ambiegen`` itself cannot start.
+``python -m ambiegen_ros.doctor`` (``main``) works even where ``ambiegen`` itself cannot start;
+``ambiegen doctor`` is the same checks as a subcommand (``ambiegen_ros.cli.doctor``).
 """
 from __future__ import annotations
 
 import json
 import os
+import sys
 import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -220,6 +224,18 @@ def check_messages() -> Check:
     return Check("ambiegen_msgs", OK, f"{installed}: {len(ours.own_types)} types, same type hashes", data)
 
 
+def check_message_classes() -> Check:
+    """rclpy backend: do the Python classes colcon generates for ambiegen_msgs import? (The same
+    check every node makes before it starts, with the same one line.)"""
+    from ..ros.transport.rclpy_backend import message_classes, missing_messages
+
+    missing = missing_messages()
+    if missing:
+        return Check("ambiegen_msgs_python", FAIL, missing, {"importable": False})
+    return Check("ambiegen_msgs_python", OK, f"ambiegen_msgs.msg has {', '.join(message_classes())}",
+                 {"importable": True})
+
+
 def _safely(name: str, fn: Callable[[], Any]) -> list[Check]:
     """A check that crashes is itself a broken environment, reported as one line."""
     try:
@@ -235,6 +251,8 @@ def run_checks() -> list[Check]:
     checks = backend_checks + _safely("rmw", lambda: check_rmw(backend)) + _safely("domain_id", check_domain)
     checks += _safely("discovery", check_discovery) + _safely("dependencies", check_dependencies)
     checks += _safely("numba_loads", check_numba) + _safely("ambiegen_msgs", check_messages)
+    if backend == "rclpy":
+        checks += _safely("ambiegen_msgs_python", check_message_classes)
     return checks
 
 
@@ -249,3 +267,27 @@ def report(checks: list[Check], as_json: bool = False) -> int:
             print(f"[{c.status:>4}] {c.name:<{width}}  {c.detail}")
         print("all fine" if not broken else f"{sum(c.status == FAIL for c in checks)} problem(s) found")
     return 1 if broken else 0
+
+
+USAGE = "usage: {prog} [-h] [--json]"
+
+
+def main(argv: list[str] | None = None, prog: str = "python -m ambiegen_ros.doctor") -> int:
+    """Run the checks and print them (``--json``: one JSON object); exit status as ``report``.
+
+    Parses its one option by hand: argparse belongs to the command line (``cli``), which imports
+    this module, never the other way round. A wrong argument is two lines and exit status 2, as
+    argparse would print them.
+    """
+    args = sys.argv[1:] if argv is None else list(argv)
+    if any(a in ("-h", "--help") for a in args):
+        print(USAGE.format(prog=prog) + "\n\n" + (__doc__ or "").split("\n")[0] + "\n\noptions:\n"
+              "  -h, --help  show this help message and exit\n"
+              "  --json      print one JSON object (ok, checks[])")
+        return 0
+    unknown = [a for a in args if a != "--json"]
+    if unknown:
+        print(USAGE.format(prog=prog), file=sys.stderr)
+        print(f"{prog}: error: unrecognized arguments: {' '.join(unknown)}", file=sys.stderr)
+        return 2
+    return report(run_checks(), as_json="--json" in args)

@@ -95,7 +95,7 @@ def _too_few_runs_note(tests: list[dict], metric: str) -> list[str]:
     if why is None:
         return []
     return ["", f"**Too few runs to decide:** {why}. A median of a few runs also moves a lot from one set of "
-            "seeds to the next; the paper ran 30 per algorithm (the README's RQ1/RQ2 table gives ours)."]
+            "seeds to the next; the paper ran 30 per algorithm (docs/reproducing_the_paper.md gives ours)."]
 
 
 def _tests_table(tests: list[dict], metric: str, paper: dict | None) -> list[str]:

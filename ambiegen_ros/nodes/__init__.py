@@ -12,14 +12,35 @@ def wants_help(argv: list[str] | None = None) -> bool:
     return any(a in ("-h", "--help") for a in head)
 
 
+def unusable_messages() -> str:
+    """'' when the node's backend can build our messages, else the one line that says what to run.
+
+    On the rclpy backend the messages are the classes colcon generates for ``ambiegen_msgs``,
+    which a plain ``colcon build`` leaves out (``rclpy_backend.missing_messages``); the DDS backend
+    reads the .msg files and needs nothing built. A backend that cannot be chosen is left to the
+    node's creation to report.
+    """
+    from ..ros.transport import TransportError, select_backend
+
+    try:
+        if select_backend() != "rclpy":
+            return ""
+    except (TransportError, ValueError):
+        return ""
+    from ..ros.transport.rclpy_backend import missing_messages
+
+    return missing_messages()
+
+
 def run_node(
     label: str, make: Callable[[], Any], finish: Callable[[Any], int | None] | None = None, doc: str | None = None,
     drain: bool = False,
 ) -> int:
     """The shared ``main()`` of every node: build it, spin until SIGINT/SIGTERM or done, clean up.
 
-    ``make`` returns an object with a ``node``; a bad parameter or config, or a missing or too old
-    library (``deps``), exits with status 2 and one line. After the spin the node lets its
+    ``make`` returns an object with a ``node``; a bad parameter or config, a missing or too old
+    library (``deps``), or, on rclpy, an unbuilt ``ambiegen_msgs`` (``unusable_messages``: checked
+    before the node exists) exits with status 2 and one line. After the spin the node lets its
     messages arrive (``Node.finish_io``: with ``drain``, a recorder first takes what is still on
     its way; every node waits until its reliable samples are acknowledged), then ``finish`` runs
     (close files, stop threads; it may return the exit code) and the node shuts down.
@@ -31,6 +52,10 @@ def run_node(
     from ..deps import broken_environment
 
     if broken_environment(label):
+        return 2
+    missing = unusable_messages()
+    if missing:
+        print(f"{label}: error: {missing}", file=sys.stderr)
         return 2
     from ..core.attributes import ScenarioError
     from ..core.config import ConfigError

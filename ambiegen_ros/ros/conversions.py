@@ -136,6 +136,28 @@ def velocity_command(msg: Any) -> tuple[float, float]:
     return float(v), float(w)
 
 
+STATUS_OK, STATUS_ERROR = 0, 2  # diagnostic_msgs/DiagnosticStatus levels
+
+
+def status_report(make: Make, now_ns: int, name: str, problem: str = "", frame_id: str = "") -> Any:
+    """A stamped status (``diagnostic_msgs/DiagnosticArray``, one status): level ERROR with
+    ``problem`` as its message (the stack gave up, the body touches a wall), else OK. Sent every
+    cycle, the OK ones are heartbeats: they tell a judge that nothing happened up to their stamp."""
+    status = make("diagnostic_msgs/msg/DiagnosticStatus", level=STATUS_ERROR if problem else STATUS_OK, name=name,
+                  message=problem, hardware_id="")
+    return make("diagnostic_msgs/msg/DiagnosticArray", header=header(make, now_ns, frame_id), status=[status])
+
+
+def status_problem(msg: Any) -> tuple[int, str | None]:
+    """(stamp ns, the first ERROR status's message, else None) of a ``DiagnosticArray``; rclpy
+    gives a ``byte`` level as bytes, the DDS backend as an int."""
+    for status in msg.status:
+        level = status.level[0] if isinstance(status.level, (bytes, bytearray)) else int(status.level)
+        if level == STATUS_ERROR:
+            return stamp_ns(msg.header), clip_text(status.message) or clip_text(status.name) or "no reason given"
+    return stamp_ns(msg.header), None
+
+
 def key_values(make: Make, values: dict[str, Any]) -> list[Any]:
     return [make("diagnostic_msgs/msg/KeyValue", key=str(k), value=_text(v)) for k, v in values.items()]
 

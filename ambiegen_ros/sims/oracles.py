@@ -147,15 +147,22 @@ class RobotJudge(_Judge):
         self._heading = heading
         return out
 
-    def add(self, t, x, y, yaw=None, stall=None) -> bool:
-        """Judge a batch of samples; returns True once decided (later samples are ignored)."""
+    def add(self, t, x, y, yaw=None, stall=None, collision=None) -> bool:
+        """Judge a batch of samples; returns True once decided (later samples are ignored).
+
+        ``stall`` (per sample): the robot's stall flag, a cause (``"emergency_stop"``) or a bool
+        (``"reported"``); ``collision`` (per sample): a collision reported by the world, as a text
+        naming the report, or None. One sample's priority: the world's collision, then the
+        monitors' own order (contact, the stall flag, goal, loitering, time limit), so that events
+        sharing a stamp always resolve the same way."""
         if self.decided:
             return True
         t, x, y = (np.atleast_1d(np.asarray(a, dtype=float)) for a in (t, x, y))
         if not len(t):
             return False
         yaw = self._headings(x, y) if yaw is None else np.atleast_1d(np.asarray(yaw, dtype=float))
-        flags = np.zeros(len(t), dtype=bool) if stall is None else np.atleast_1d(np.asarray(stall)).astype(bool)
+        causes = [None] * len(t) if stall is None else [_cause(f) for f in np.atleast_1d(np.asarray(stall, dtype=object))]
+        reports = [None] * len(t) if collision is None else list(collision)
         clear = self.walls.clearance(x, y, yaw)
         if self.monitors is None:
             self.start(float(x[0]), float(y[0]))
@@ -163,7 +170,7 @@ class RobotJudge(_Judge):
         assert mon is not None
         used = len(t)
         for i in range(len(t)):
-            if mon.update(float(t[i]), float(x[i]), float(y[i]), float(clear[i]), "reported" if flags[i] else None):
+            if mon.update(float(t[i]), float(x[i]), float(y[i]), float(clear[i]), causes[i], reports[i]):
                 used = i + 1
                 break
         self._prev = (float(x[used - 1]), float(y[used - 1]))
@@ -204,6 +211,13 @@ class RobotJudge(_Judge):
             {"robot_time": float(metrics["time"]) if success else self.time_limit}, metrics,
             xy if len(xy) else None, {"t": t_rel, "x": xy[:, 0], "y": xy[:, 1]},
         )
+
+
+def _cause(flag: Any) -> str | None:
+    """A stall flag as the monitors take it: a cause, or "reported" for a bare true."""
+    if isinstance(flag, str):
+        return flag or None
+    return "reported" if flag else None
 
 
 def judge_robot(t, x, y, grid: np.ndarray, resolution: float, goal_xy: tuple[float, float],

@@ -264,7 +264,10 @@ class RobotMonitors:
         self.kind, self.outcome, self.detail = kind, outcome, detail
         self.failure_point = None if kind == "none" else (x, y)
 
-    def update(self, t: float, x: float, y: float, clearance: float, stall_cause: str | None = None) -> bool:
+    def update(self, t: float, x: float, y: float, clearance: float, stall_cause: str | None = None,
+               collision: str | None = None) -> bool:
+        """One pose; ``collision``: a collision the world reported at it (the report's source), which
+        outranks everything the monitors see at the same pose."""
         if self.decided:
             return True
         cfg = self.cfg
@@ -298,7 +301,10 @@ class RobotMonitors:
             self._sum[1] -= oy
             self._window_path -= math.hypot(self._window[0][1] - ox, self._window[0][2] - oy)
 
-        if clearance <= 0.0:
+        if collision:
+            self._decide("collision", "collision", f"collision at ({x:.2f}, {y:.2f}) after {self.t:.1f} s ({collision})",
+                         x, y)
+        elif clearance <= 0.0:
             self.stall_cause = "contact"
             self._decide("stall", "stall", f"the body touches a wall at ({x:.2f}, {y:.2f}) after {self.t:.1f} s "
                          "and cannot move", x, y)

@@ -54,7 +54,7 @@ def start_nav2(g, workspace: Path, env: dict, tmp_path: Path, config: Path, mcap
     scaled.write_text(yaml.safe_dump(launch_logic.scale_nav2_rates(params, TIME_SCALE)))
     g.ros("recorder", "ros2 run ambiegen_ros recorder " + ros_args(
         output=mcap, extra_topics=",".join(launch_logic.NAV2_TOPICS)), workspace, env)
-    g.ros("world", "ros2 run ambiegen_ros robot_world " + ros_args(time_scale=TIME_SCALE, collision_topic="/collision"),
+    g.ros("world", "ros2 run ambiegen_ros robot_world " + ros_args(time_scale=TIME_SCALE, collision_topic="/collision", paired_start=True),
           workspace, env)
     for name, package, executable in launch_logic.NAV2_NODES:
         g.ros(name, f"ros2 run {package} {executable} --ros-args --params-file {scaled} -r __node:={name}",

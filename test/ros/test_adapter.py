@@ -372,7 +372,7 @@ def test_a_foreign_robot_stack_with_a_bumper(graph, problems):
     node.create_subscription("geometry_msgs/msg/PoseStamped", "/goal_pose",
                              lambda m: seen.setdefault("goal", time.monotonic()), DEFAULT)
     odom = node.create_publisher("nav_msgs/msg/Odometry", "/odom", DEFAULT)
-    bumper = node.create_publisher("std_msgs/msg/Bool", "/bumper", DEFAULT)
+    bumper = node.create_publisher("diagnostic_msgs/msg/DiagnosticArray", "/bumper", DEFAULT)
     make = node.new_message
 
     def drive() -> None:
@@ -382,7 +382,7 @@ def test_a_foreign_robot_stack_with_a_bumper(graph, problems):
         odom.publish(make("nav_msgs/msg/Odometry", pose=make("geometry_msgs/msg/PoseWithCovariance",
                                                              pose=conversions.pose(make, 0.1, 0.0))))
         if time.monotonic() - seen["goal"] > 0.5:
-            bumper.publish(make("std_msgs/msg/Bool", data=True))
+            bumper.publish(conversions.status_report(make, 0, "bumper", "bumped"))  # zero stamps: receive clock
 
     node.create_timer(0.02, drive)
     driver.wait_matched()

@@ -4,13 +4,14 @@ real DDS (each test its own ROS_DOMAIN_ID).
 
 * the world alone, free-running: ``/clock``, ``/tf``, ``/tf_static``, ``/odom``, ``/scan`` (inf = no
   return) and the collision flag, with the body stopped at a wall;
-* world + stack + adapter: every verdict equals the in-process full model's on the same maps and
-  laser seed (a pass, a stall, a loiter; an invalid test is never sent), and every path is, to the
-  bit, the in-process run fed the wire's number formats (``helpers.wire``), and the stack's plan
-  counted; a failure without a plan says so;
+* world + stack + adapter, with three busy loops beside them: on 20 maps where the ND robot fails
+  (passes, stalls, loiters; an invalid test is never sent) every verdict and every path is, to the
+  bit, the in-process full model's fed the wire's number formats (``helpers.wire``), decided in
+  stamp order; the stack's plan counted; a failure without a plan says so;
 * ``ambiegen campaign --problem robot --stack nd``: every scenario answered, and the MCAP, read
   back with the ``mcap`` library (not our writer's code), holds every scenario, every result and
-  the robot's topics with their publishers' QoS.
+  the robot's topics with their publishers' QoS; replayed in execute mode on a new world + stack +
+  adapter, it gives the verdicts it holds.
 """
 from __future__ import annotations
 
@@ -35,6 +36,7 @@ from ambiegen_ros.problems import get_problem  # noqa: E402
 from ambiegen_ros.ros import conversions  # noqa: E402
 from ambiegen_ros.ros.qos import DEFAULT, LATCHED, Qos  # noqa: E402
 from ambiegen_ros.sims.full_model import full_model_executor  # noqa: E402
+from helpers.nd_maps import FAILING_SAFETY_DIST, busy_loops, certified_maps  # noqa: E402
 from helpers.sut_graph import Driver  # noqa: E402
 from helpers.wire import wire_emulation  # noqa: E402
 from test_full_models import box, easy_robot_elements  # noqa: E402
@@ -43,7 +45,7 @@ pytestmark = pytest.mark.skipif(os.environ.get("AMBIEGEN_TRANSPORT", "auto") == 
                                 reason="these tests drive the DDS backend")
 FAILURES = json.loads((REPO / "test" / "data" / "robot_nd_failures.json").read_text())
 LOCKSTEP = {"lockstep": True, "time_scale": 0.0, "scan_rate": 10.0, "sim.dt": 0.1,  # the full model's loop
-            "cmd_vel_stamped": True}
+            "cmd_vel_stamped": True, "paired_start": True}
 
 
 def test_the_world_alone_speaks_nav2s_topics(graph):
@@ -56,7 +58,8 @@ def test_the_world_alone_speaks_nav2s_topics(graph):
     node.create_subscription("tf2_msgs/msg/TFMessage", "/tf_static", lambda m: got["tf_static"].append(m), LATCHED)
     node.create_subscription("nav_msgs/msg/Odometry", "/odom", lambda m: got["odom"].append(m), Qos(depth=100))
     node.create_subscription("sensor_msgs/msg/LaserScan", "/scan", lambda m: got["scan"].append(m), Qos(depth=100))
-    node.create_subscription("std_msgs/msg/Bool", "/collision", lambda m: got["collision"].append(bool(m.data)), DEFAULT)
+    node.create_subscription("diagnostic_msgs/msg/DiagnosticArray", "/collision",
+                             lambda m: got["collision"].append(conversions.status_problem(m)[1] is not None), DEFAULT)
     pub_map = node.create_publisher("nav_msgs/msg/OccupancyGrid", "/map", LATCHED)
     pub_pose = node.create_publisher("geometry_msgs/msg/PoseWithCovarianceStamped", "/initialpose", DEFAULT)
     pub_cmd = node.create_publisher("geometry_msgs/msg/Twist", "/cmd_vel", DEFAULT)
@@ -92,46 +95,52 @@ def test_the_world_alone_speaks_nav2s_topics(graph):
     assert all(b > a for a, b in zip(stamps, stamps[1:])), "odometry stamps must increase"
 
 
-def test_the_nd_stack_behind_the_adapter_gives_the_in_process_verdicts(graph):
-    """safety_dist 0.3 m makes our ND robot fail on two refined maps (test/data/robot_nd_failures.json)."""
+def test_the_nd_stack_behind_the_adapter_gives_the_in_process_verdicts_on_a_loaded_machine(graph):
+    """The 20 maps of ``bench/nd_stack.py``'s failing setting (``safety_dist`` 0.3 m), plus a map
+    whose reference fails (an invalid test, never sent), through ``robot_world`` (lockstep) +
+    ``nd_driver`` + ``sut_adapter`` with three busy loops beside them: every verdict, its time and
+    the whole path equal, to the bit, the in-process full model fed what crosses the wire (float32
+    ranges and beam ends, the heading as a quaternion). The stack's stall flag and the odometry
+    travel on two topics; the adapter decides in stamp order, so a stall and a loiter at one stamp
+    resolve as in process however the load reorders them. (Against the plain float64 in-process
+    run ND's amplified roundings can flip a marginal map, differently on AVX2 and AVX-512 numpy:
+    ``bench/nd_stack.py`` reports that count, this test does not assert it.)"""
     p = get_problem("robot", {"profile": "refined"})
+    full = full_model_executor(p, safety_dist=FAILING_SAFETY_DIST, run_invalid=True)
+    walled = easy_robot_elements()
+    walled[44] = {"type": "horizontal", "size": 10, "position": 44}
+    walled[46] = {"type": "vertical", "size": 6, "position": 44}
+    scs = certified_maps(p, full, 20) + [p.parse({"problem": "robot", "elements": walled})]
+    with wire_emulation():
+        wires = [full.execute(sc, seed=0) for sc in scs]
+    assert wires[-1].failure_kind == "invalid_test"
+    assert {w.failure_kind for w in wires[:-1]} >= {"none", "stall", "loiter"}  # the maps give every kind
     procs, node = graph()
     procs.start("world", "sim_nodes.robot_world", **LOCKSTEP)
-    procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True, **{"sim.safety_dist": FAILURES["safety_dist"]})
+    procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True, **{"sim.safety_dist": FAILING_SAFETY_DIST})
     procs.start("adapter", "sim_nodes.sut_adapter", problem="robot", worker_id="sut", profile="refined",
                 stall_topic="/nd_driver/stall", plan_topic="/plan", settle_time=0.1, run_invalid=True)
     driver = Driver(node, p)
     driver.wait_matched()
-    walled = easy_robot_elements()
-    walled[44] = {"type": "horizontal", "size": 10, "position": 44}
-    walled[46] = {"type": "vertical", "size": 6, "position": 44}
-    scs = [p.parse(FAILURES["stall"]), p.parse({"problem": "robot", "elements": walled}), p.parse(FAILURES["loiter"]),
-           p.parse({"problem": "robot", "elements": easy_robot_elements()})]
     t0 = time.monotonic()
-    driver.send("nd", scs)
-    got = driver.wait("nd", len(scs), 600)  # a safety net: the wait ends with the last result
+    with busy_loops(3):
+        driver.send("nd", scs)
+        got = driver.wait("nd", len(scs), 1800)  # a safety net: the wait ends with the last result
     assert all(got), procs.logs()
     wall = time.monotonic() - t0
-    full = full_model_executor(p, safety_dist=FAILURES["safety_dist"], run_invalid=True)
-    for sc, res in zip(scs, got):
-        ref = full.execute(sc, seed=0)
-        assert (res.failure_kind, res.failed) == (ref.failure_kind, ref.failed), (res.detail, ref.detail)
-        if ref.failure_kind != "invalid_test":
-            # the very run of the full model fed what crosses the wire (float32 ranges and beam
-            # ends, the heading as a quaternion): step for step, to the bit; the stall flag takes
-            # its own topic, so the verdict may land a step later
-            with wire_emulation():
-                wire = full.execute(sc, seed=0)
-            assert wire.failure_kind == ref.failure_kind
-            n = min(len(res.trajectory), len(wire.trajectory))
-            assert n >= len(wire.trajectory) - 1 and np.array_equal(np.asarray(res.trajectory[:n]), wire.trajectory[:n])
-            assert float(res.metrics["time"]) == pytest.approx(wire.metrics["time"], abs=0.11)
-            # the stack's plan (nd_driver's route on /plan) counted by the adapter: the route the model follows
-            assert int(res.metrics["plans"]) >= 1
-            assert float(res.metrics["plan_length_m"]) == pytest.approx(float(ref.metrics["route_length"]), rel=1e-6)
-    assert [r.failure_kind for r in got] == ["stall", "invalid_test", "loiter", "none"]
-    assert "emergency_stop" in got[0].detail  # the stack's own stall flag, on /nd_driver/stall
-    print(f"nd stack through the adapter: {len(scs)} scenarios in {wall:.1f} s")
+    for i, (res, wire) in enumerate(zip(got, wires)):
+        assert res.failure_kind == wire.failure_kind, (i, res.detail, wire.detail)
+        if wire.failure_kind == "invalid_test":
+            continue
+        assert np.array_equal(np.asarray(res.trajectory), wire.trajectory), i
+        assert float(res.metrics["time"]) == pytest.approx(wire.metrics["time"], abs=1e-6), i
+        # the stack's plan (nd_driver's route on /plan) counted by the adapter: the route the model follows
+        assert int(res.metrics["plans"]) >= 1
+        assert float(res.metrics["plan_length_m"]) == pytest.approx(float(wire.metrics["route_length"]), rel=1e-6)
+        if res.failure_kind == "stall" and res.metrics.get("stall_cause") == "emergency_stop":
+            assert "on /nd_driver/stall" in res.detail, res.detail  # the stack's own flag, said so
+    kinds = Counter(r.failure_kind for r in got)
+    print(f"nd stack through the adapter, 3 busy loops: {len(scs)} scenarios in {wall:.1f} s: {dict(kinds)}")
 
 
 def test_a_failure_without_a_plan_says_so(graph):
@@ -153,7 +162,7 @@ def test_a_failure_without_a_plan_says_so(graph):
     assert "; no plan on /plan since the goal" in res.detail, res.detail
 
 
-def test_a_stack_campaign_logs_a_robot_bag(tmp_path, ros_domain):
+def test_a_stack_campaign_logs_a_robot_bag_that_replays_to_its_verdicts(tmp_path, ros_domain, graph):
     from mcap.reader import make_reader
 
     out = tmp_path / "run"
@@ -190,3 +199,18 @@ def test_a_stack_campaign_logs_a_robot_bag(tmp_path, ros_domain):
         ref = full.execute(p.parse(sc.to_dict()), seed=1)
         assert rec.outcomes[sid].failure_kind == ref.failure_kind, (rec.outcomes[sid].detail, ref.detail)
     assert math.isfinite(summary["elapsed_s"])
+    # the bag's scenarios executed again on a new world + stack + adapter (``ambiegen replay
+    # --execute``, the recorded seed): every verdict and objective is the one in the log
+    procs, _ = graph()
+    procs.start("world", "sim_nodes.robot_world", seed=1, **LOCKSTEP)
+    procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True)
+    procs.start("adapter", "sim_nodes.sut_adapter", problem="robot", worker_id="sut_replay", profile="replication",
+                stall_topic="/nd_driver/stall", plan_topic="/plan", settle_time=0.1)
+    report_path = tmp_path / "replay.json"
+    run = subprocess.run([sys.executable, "-m", "ambiegen_ros.cli", "replay", str(mcap), "--execute", "--report",
+                          str(report_path), "--domain-id", str(ros_domain)],
+                         cwd=REPO, env=env, capture_output=True, text=True, timeout=900)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:] + procs.logs()
+    report = json.loads(report_path.read_text())
+    assert report["settled"] == report["scenarios"] == len(rec.scenarios)
+    assert report["changes"] == {"none": len(rec.scenarios)}, report["entries"]

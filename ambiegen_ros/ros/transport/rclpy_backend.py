@@ -1,14 +1,22 @@
 """rclpy (ROS 2 Jazzy) backend: a thin adapter from the seam's ``Node`` to ``rclpy.node.Node``.
 
 Import-safe without ROS: rclpy and friends are imported inside functions, so this module (its QoS
-table, availability probe) loads and is unit-tested on machines without rclpy. Jazzy idioms:
+table, availability probe, the check of ``ambiegen_msgs``) loads and is unit-tested on machines
+without rclpy. A node on this backend needs the Python classes that colcon generates for
+``ambiegen_msgs``; a plain ``colcon build`` does not build that package (it sits inside the
+``ambiegen_ros`` package's folder, where colcon never looks), so every node checks for them before
+it creates its node (``missing_messages``, called by ``nodes.run_node``) and stops with one line
+naming the command to run. Jazzy idioms:
 ``rclpy.init()`` returns None; spin inside ``try/except (KeyboardInterrupt,
 ExternalShutdownException)``; ``node.destroy_node()`` then ``rclpy.try_shutdown()``.
 """
 from __future__ import annotations
 
+import importlib
 import importlib.util
+import shlex
 import time
+from pathlib import Path
 from typing import Any, Callable, Sequence
 
 from ambiegen_ros.ros.qos import Qos
@@ -52,6 +60,89 @@ def is_available() -> bool:
 def unavailable_reason() -> str:
     is_available()
     return _import_error or ""
+
+
+# ---------------------------------------------------------------------------------------------
+# ambiegen_msgs: rclpy needs its generated Python classes (the DDS backend reads the .msg files)
+
+MSGS_PACKAGE = "ambiegen_msgs"
+
+
+def message_classes() -> tuple[str, ...]:
+    """The ambiegen_msgs classes our topics use (``topics``), e.g. ``ScenarioResult``."""
+    from ambiegen_ros.ros import topics
+
+    names = [topics.RUN_CONFIG_TYPE, topics.STATUS_TYPE, topics.RESULT_TYPE, *topics.SCENARIO_TYPES.values()]
+    return tuple(sorted({n.rsplit("/", 1)[1] for n in names if n.startswith(MSGS_PACKAGE + "/")}))
+
+
+def messages_problem() -> str:
+    """'' when ``ambiegen_msgs.msg`` imports with every class our topics use, else what is wrong.
+
+    Imports no rclpy. The module may be missing (the package was not built, or its workspace not
+    sourced) or a namespace package without the classes (a source folder ``ambiegen_msgs/`` on
+    ``sys.path``, which holds only .msg files): get_message would fail later with "module
+    'ambiegen_msgs.msg' has no attribute 'ScenarioResult'".
+    """
+    try:
+        module = importlib.import_module(MSGS_PACKAGE + ".msg")
+    except ImportError as exc:
+        return f"{type(exc).__name__}: {exc}"
+    except Exception as exc:  # a broken build raises other errors while importing
+        return f"{MSGS_PACKAGE}.msg does not import ({type(exc).__name__}: {exc})"
+    missing = [name for name in message_classes() if not hasattr(module, name)]
+    if missing:
+        where = getattr(module, "__file__", None) or ", ".join(
+            dict.fromkeys(str(Path(p).resolve()) for p in getattr(module, "__path__", []))) or "?"
+        return f"{MSGS_PACKAGE}.msg ({where}) has no {', '.join(missing)}"
+    return ""
+
+
+def _workspace_of(path: Path) -> Path | None:
+    """The colcon workspace ``path`` lies in: the parent of its ``install`` or ``build`` folder,
+    when that parent has a ``src`` folder."""
+    for parent in path.parents:
+        if parent.name in ("install", "build") and (parent.parent / "src").is_dir():
+            return parent.parent
+    return None
+
+
+def msgs_build_command(module_file: str | Path | None = None) -> str:
+    """The shell command that builds ambiegen_msgs beside this package and sources the result.
+
+    From the workspace this code runs in (found from ``module_file``, default this file, without
+    resolving symlinks: a ``--symlink-install`` build links back into ``src``): ``cd WS && colcon
+    build --base-paths src src/<repo>/ambiegen_msgs && source install/setup.bash``, with the
+    repository's folder as found under ``src``. Run from a checkout outside any workspace, the
+    checkout itself is the workspace (``--paths . ambiegen_msgs``).
+    """
+    here = Path(module_file or __file__).absolute()
+    workspace = _workspace_of(here)
+    checkout = here.parents[3] if len(here.parents) > 3 else None  # <repo>/ambiegen_ros/ros/transport/x.py
+    if checkout is not None and not (checkout / MSGS_PACKAGE / "package.xml").is_file():
+        checkout = None
+    if workspace is None and checkout is not None:
+        if checkout.parent.name != "src":
+            return (f"cd {shlex.quote(str(checkout))} && colcon build --paths . {MSGS_PACKAGE} "
+                    "&& source install/setup.bash")
+        workspace = checkout.parent.parent
+    msgs = f"src/<repository folder>/{MSGS_PACKAGE}"
+    if workspace is not None:
+        found = sorted({str(p.parent.relative_to(workspace)) for pattern in ("src/*", "src/*/*")
+                        for p in workspace.glob(f"{pattern}/{MSGS_PACKAGE}/package.xml")})
+        if len(found) == 1:
+            msgs = shlex.quote(found[0])
+    build = f"colcon build --base-paths src {msgs} && source install/setup.bash"
+    return f"cd {shlex.quote(str(workspace))} && {build}" if workspace is not None else f"in your workspace: {build}"
+
+
+def missing_messages(module_file: str | Path | None = None) -> str:
+    """'' when ambiegen_msgs is usable, else the one line a node prints before it stops."""
+    problem = messages_problem()
+    if not problem:
+        return ""
+    return (f"{MSGS_PACKAGE} is not built or not sourced ({problem}); a plain `colcon build` skips it because it "
+            f"sits inside the ambiegen_ros package's folder; run: {msgs_build_command(module_file)}")
 
 
 # ---------------------------------------------------------------------------------------------
