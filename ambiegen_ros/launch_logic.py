@@ -215,9 +215,11 @@ def plan_nav2_campaign(values: dict[str, str], share_dir: str, seed: int | None 
 
 # --- the end of a run ------------------------------------------------------------------------------
 def log_summary(mcap: Path, run_id: str, recorder_log: str) -> dict[str, Any]:
-    """``summarize()`` of the finished log and the profile it recorded; a missing or damaged log
-    is reported under ``log_error`` (with what to do), never raised."""
+    """``summarize()`` of the finished log and the profile it recorded, and a picture of each
+    distinct certified failure in ``failures/`` beside it (``nodes.gallery``); a missing or damaged
+    log is reported under ``log_error`` (with what to do), never raised."""
     from .nodes.execution import run_profile
+    from .nodes.gallery import draw_failures
     from .ros.runlog import read_metadata, summarize
 
     if not Path(mcap).exists():
@@ -229,6 +231,8 @@ def log_summary(mcap: Path, run_id: str, recorder_log: str) -> dict[str, Any]:
         recorded = run_profile(metadata.get("ambiegen_run", {}).get("config_json", ""))
         if recorded:
             out["profile"] = recorded  # what the run used, as recorded
+        if out.get("failures"):
+            out.update(draw_failures(mcap, Path(mcap).parent / "failures"))
         return out
     except Exception as exc:  # a damaged log is reported, not hidden
         return {"mcap": str(mcap), "log_error": f"{type(exc).__name__}: {exc} (try: ambiegen recover {mcap})"}
@@ -273,6 +277,14 @@ def summary_table(summary: dict[str, Any]) -> str:
         kinds = {k: v for k, v in summary.get("outcomes", {}).items() if k != "none"}
         by_kind = ", ".join(f"{k} {v}" for k, v in sorted(kinds.items(), key=lambda kv: (-kv[1], kv[0])))
         rows.append(("failures", f"{summary['failures']}" + (f"  (outcomes: {by_kind})" if by_kind else "")))
+        if summary.get("failures"):
+            pictures = summary.get("failure_pictures") or []
+            rows.append(("distinct", f"{summary.get('distinct_failures', '?')} distinct failures (by what failed and "
+                                     f"where), {len(pictures)} drawn"))
+            for picture in pictures[:3]:
+                rows.append(("picture", f"{picture['path']}  ({picture['signature']})"))
+            if len(pictures) > 3:
+                rows.append(("pictures", f"{len(pictures) - 3} more in {Path(pictures[0]['path']).parent}"))
         if summary.get("invalid_tests"):
             rows.append(("invalid tests", f"{summary['invalid_tests']}  (no reference passes them either: "
                                           "not failures of the system under test)"))

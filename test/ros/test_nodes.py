@@ -235,6 +235,9 @@ CAMPAIGNS = {
     "robot": (None, "robot", "nsga2", 200, {"population": 20, "offspring": 20}),
     "vehicle": (None, "vehicle", "nsga2", 200, {"population": 20, "offspring": 20}),
     "in_the_loop": (None, "thermostat", "ga", 240, {"population": 30, "offspring": 30, "mode": "in_the_loop", "workers": 2}),
+    # the README's first command, smaller: refined roads searched in the loop find certified failures
+    "demo": (None, "vehicle", "nsga2", 300, {"population": 50, "offspring": 50, "mode": "in_the_loop", "workers": 2,
+                                             "profile": "refined"}),
 }
 
 
@@ -310,6 +313,30 @@ def test_in_the_loop_campaign_end_to_end(campaigns):
     # in the loop every evaluation is a scenario executed by a sim node
     assert summary["scenarios_published"] == evaluations == summary["evaluations"]
     assert summary["mode"] == "in_the_loop"
+
+
+def test_a_campaign_draws_each_distinct_certified_failure(campaigns, tmp_path):
+    """The README's first command in small: failures found, certified, grouped by what failed and
+    where, one picture each, the paths printed; drawing again never draws over a picture."""
+    from ambiegen_ros.nodes.gallery import draw_failures
+
+    code, summary, out, output = campaigns["demo"]
+    assert code == 0, output[-3000:]
+    assert summary["failures"] > 0 and summary["outcomes"].get("out_of_lane", 0) > 0, summary
+    pictures = summary["failure_pictures"]
+    assert 1 <= summary["distinct_failures"] <= summary["certified_failures"] == summary["failures"]
+    assert len(pictures) == min(summary["distinct_failures"], 12)
+    assert len({p["signature"] for p in pictures}) == len(pictures)  # distinct failures, described apart
+    for picture in pictures:
+        path = Path(picture["path"])
+        assert path.parent == out / "failures" and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert pictures[0]["path"] in output  # printed where a newcomer looks
+    before = {p: p.stat().st_mtime_ns for p in (out / "failures").iterdir()}
+    again = draw_failures(summary["mcap"], out / "failures")
+    assert again["distinct_failures"] == summary["distinct_failures"] and again["failure_pictures"] == []
+    assert {p: p.stat().st_mtime_ns for p in (out / "failures").iterdir()} == before
+    elsewhere = draw_failures(summary["mcap"], tmp_path / "pictures")
+    assert [Path(p["path"]).name for p in elsewhere["failure_pictures"]] == [Path(p["path"]).name for p in pictures]
 
 
 def test_mcap_read_back_by_rosbags_holds_the_whole_run(campaigns):

@@ -1,0 +1,53 @@
+"""Pictures of a logged run's distinct certified failures: what a tester looks at first.
+
+Read from the MCAP alone (``replay.recorded_scenarios``), so a campaign, a launch and a copied log
+all give the same pictures. The problem is rebuilt from the run config the log records; failures
+are grouped by what failed (``sims.signature``, greedy in scenario order, as RQ3 counts them); each
+distinct one is executed again in process with the scenario's recorded seed, so that the picture
+has the full run (a thermostat's curves), and drawn from the logged trajectory when the run is not
+the logged one (another model, another machine's numbers). Files are never overwritten.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from ..problems import get_problem
+from ..ros.runlog import read_metadata
+from ..sims.signature import DistinctFailures, signature
+from .replay import recorded_scenarios
+
+PICTURES_KEPT = 12
+
+
+def draw_failures(mcap: str | Path, out_dir: str | Path, limit: int = PICTURES_KEPT) -> dict[str, Any]:
+    """One PNG per distinct certified failure (up to ``limit``) in ``out_dir``; what was drawn."""
+    from ..sims.full_model import full_model_executor, scenario_seed
+    from ..viz.execution import save_execution_plot
+
+    rec = recorded_scenarios(mcap)
+    config = json.loads(read_metadata(mcap).get("ambiegen_run", {}).get("config_json", "{}") or "{}")
+    problem_config = dict(config.get("problem_config") or {})
+    problem = get_problem(rec.problem, problem_config)
+    full = full_model_executor(problem) if config.get("sim_model", "full") == "full" else None
+    distinct = DistinctFailures()
+    pictures: list[dict[str, Any]] = []
+    out_dir = Path(out_dir)
+    for sid in sorted(rec.outcomes):
+        logged, scenario = rec.outcomes[sid], rec.scenarios.get(sid)
+        sig = None if scenario is None else signature(problem, scenario, logged)
+        if sig is None or not distinct.add(sig) or len(pictures) >= limit:
+            continue
+        shown = logged
+        if full is not None:
+            again = full.execute(scenario, seed=scenario_seed(rec.seed, sid))
+            if again.failure_kind == logged.failure_kind:
+                shown = again
+        path = out_dir / f"failure_{sid:05d}_{sig.kind}.png"
+        if path.exists():  # never drawn over: an earlier picture stays
+            continue
+        save_execution_plot(problem, scenario, shown, path)
+        pictures.append({"scenario_id": sid, "signature": sig.describe(), "path": str(path)})
+    return {"certified_failures": len(distinct.seen), "distinct_failures": len(distinct),
+            "failure_pictures": pictures}
