@@ -285,6 +285,8 @@ def summary_table(summary: dict[str, Any]) -> str:
                 rows.append(("picture", f"{picture['path']}  ({picture['signature']})"))
             if len(pictures) > 3:
                 rows.append(("pictures", f"{len(pictures) - 3} more in {Path(pictures[0]['path']).parent}"))
+            if summary.get("same_failure_pair"):
+                rows.append(("same failure", f"{summary['same_failure_pair']['path']}  (two failures counted as one)"))
         if summary.get("invalid_tests"):
             rows.append(("invalid tests", f"{summary['invalid_tests']}  (no reference passes them either: "
                                           "not failures of the system under test)"))

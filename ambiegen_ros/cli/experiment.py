@@ -18,7 +18,7 @@ def _spec_from_args(args: argparse.Namespace):
         evaluations=args.evaluations, time_budget=args.time_budget, full_model=args.full_model,
         config_file=args.config, sim_options=parse_options(args.set), distinct_distance=args.distinct_distance,
         clock=args.clock, executors=args.executors, execution_cost=args.execution_cost,
-        signature_radius=args.signature_radius,
+        signature_radius=args.signature_radius, executor_idle=args.executor_idle,
     )
 
 
@@ -92,6 +92,10 @@ def register(sub) -> None:
     p.add_argument("--executors", type=int, default=1,
                    help="--full-model: full-model executors running beside the search, each on its own clock "
                         "(default 1)")
+    p.add_argument("--executor-idle", choices=("random", "wait"), default="random",
+                   help="--full-model: an executor the search has no fresh candidate for runs a valid random "
+                        "sample (default: a simulator never idles, so the search can only add to what random "
+                        "search finds) or waits for the search (the schedule before issue 26)")
     p.add_argument("--execution-cost", type=float, default=0.0, metavar="S",
                    help="--full-model: seconds of budget charged per execution on top of the measured time, "
                         "without sleeping (e.g. 30 for a 30 s simulator; default 0)")

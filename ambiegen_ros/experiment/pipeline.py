@@ -19,7 +19,10 @@ of measured times:
   scenario the restrictions reject, or an invalid test decided by the reference's static check
   before anything runs (the vehicle's competition rules, the robot's clearance route), costs only
   its measured time, as a tester checks a road before starting the simulator. An executor with
-  nothing available waits: its clock jumps to the moment the search produces the next candidate.
+  nothing available runs a valid random sample that it draws itself (its clock pays the draw), so a
+  simulator never idles while the search thinks and the search can only add to what random search
+  would have found (``executor_idle`` "random", the default); with "wait" its clock jumps to the
+  moment the search produces the next candidate (``waited_s``).
 * **The budget** (``--time-budget``) is on the executors' clocks: an execution that would end after
   it does not count (``overrun_discarded``). The search runs at least until it has used the
   problem's RQ3 round budget of evaluations (``spec.RQ3_ROUNDS``, the paper's evaluations per
@@ -177,6 +180,30 @@ class SearchProcess:
         self.busy += spent
         self.steps += 1
         return sum(self.queue.push(row, f, self.t) for row, f in rows)
+
+
+class RandomFill:
+    """Valid random samples for an executor the search has no candidate for (drawn in batches,
+    restrictions checked by the surrogate's validity; the caller's clock pays the draw)."""
+
+    def __init__(self, problem, rng: np.random.Generator, batch: int = 64, tries: int = 20):
+        self.problem, self.rng, self.batch, self.tries = problem, rng, batch, tries
+        self._rows: deque[tuple[np.ndarray, float]] = deque()
+        self.drawn = 0
+
+    def draw(self, skip: Callable[[np.ndarray], bool]) -> tuple[np.ndarray, float] | None:
+        """A valid sample ``skip`` does not drop, with its surrogate F1; None when none was found."""
+        for _ in range(self.tries):
+            while self._rows:
+                row, f1 = self._rows.popleft()
+                if not skip(row):
+                    self.drawn += 1
+                    return row, f1
+            X = self.problem.sample_rows(self.batch, self.rng)
+            ev = self.problem.evaluate_rows(X)
+            f1 = np.nan_to_num(np.asarray(ev.f1, dtype=float), nan=0.0)
+            self._rows.extend((X[i], float(f1[i])) for i in np.flatnonzero(ev.valid))
+        return None
 
 
 def system_ran(outcome) -> bool:
@@ -369,6 +396,8 @@ def full_model_run(problem, settings, executor, fm: dict[str, Any], seed: int,
     tally = FullModelTally(problem, seed, fm.get("distinct_distance", 0.0), fm.get("signature_radius"))
     free = [0.0] * max(1, int(fm.get("executors", 1)))  # each executor's clock
     waited = 0.0
+    fill = RandomFill(problem, np.random.default_rng([seed, 11])) if fm.get("executor_idle", "random") == "random" \
+        else None
     while True:
         e = int(np.argmin(free))
         now = free[e]
@@ -378,6 +407,10 @@ def full_model_run(problem, settings, executor, fm: dict[str, Any], seed: int,
             search.step()
         t0 = clock()
         cand = queue.pop(now, lambda c: tally.skip(c.row, now))
+        if cand is None and fill is not None and (queue.next_time() is not None or search.exhausted):
+            drawn = fill.draw(lambda row: tally.skip(row, now))  # the search is busy: never idle
+            if drawn is not None:
+                cand = Candidate(drawn[0], drawn[1], now, -1)
         if cand is None:
             nxt = queue.next_time()
             if nxt is None and not search.exhausted:  # nothing left: the (idle) search runs now
@@ -406,11 +439,13 @@ def full_model_run(problem, settings, executor, fm: dict[str, Any], seed: int,
         tally.record(cand.row, cand.f1, outcome, sim_seed, measured, charged, end)
     out = {"evaluations": search.evaluations, "search_steps": search.steps, "search_s": round(search.busy, 3),
            "best_f1": search.search.best_f1, "time_budget_s": budget, "executors": len(free),
-           "execution_cost_s": cost, "waited_s": round(waited, 3), "candidates_left": len(queue),
+           "execution_cost_s": cost, "waited_s": round(waited, 3),
+           "random_fill": 0 if fill is None else fill.drawn, "candidates_left": len(queue),
            "wall_s": round(time.perf_counter() - real_start, 3)}
     out.update(tally.summary(budget))
     return out
 
 
-__all__ = ["DISTINCT_KEPT", "SAMPLE_CAP", "Candidate", "CandidateQueue", "FullModelTally", "SearchProcess",
+__all__ = ["DISTINCT_KEPT", "SAMPLE_CAP", "Candidate", "CandidateQueue", "FullModelTally", "RandomFill",
+           "SearchProcess",
            "full_model_run", "make_clock", "system_ran", "warm_up"]

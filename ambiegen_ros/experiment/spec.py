@@ -27,6 +27,9 @@ class ExperimentError(ValueError):
     """A bad experiment request (refused before anything is written or overwritten)."""
 
 
+EXECUTOR_IDLE = ("random", "wait")  # an idle executor runs a valid random sample, or waits for the search
+
+
 @dataclass
 class ExperimentSpec:
     problem: str
@@ -44,6 +47,7 @@ class ExperimentSpec:
     executors: int = 1
     execution_cost: float = 0.0
     signature_radius: float | None = None
+    executor_idle: str = "random"  # --full-model: what an executor without a candidate does
 
     def check(self) -> None:
         from ..core.search import ALGORITHMS
@@ -71,6 +75,8 @@ class ExperimentSpec:
             raise ExperimentError("--executors: must be >= 1")
         if not (self.execution_cost >= 0 and self.execution_cost < float("inf")):
             raise ExperimentError("--execution-cost: must be >= 0 seconds")
+        if self.executor_idle not in EXECUTOR_IDLE:
+            raise ExperimentError(f"--executor-idle: {'|'.join(EXECUTOR_IDLE)}")
         if self.signature_radius is not None and not self.signature_radius >= 0:
             raise ExperimentError("--signature-radius: must be >= 0")
 
@@ -127,6 +133,7 @@ def resolve(spec: ExperimentSpec) -> dict[str, Any]:
             "executors": spec.executors,
             "execution_cost_s": spec.execution_cost,
             "distinct_distance": spec.distinct_distance,
+            "executor_idle": spec.executor_idle,
             "signature_radius": (DEFAULT_RADIUS[problem.name] if spec.signature_radius is None
                                  else spec.signature_radius),
             "simulator": executor.config_dict(),

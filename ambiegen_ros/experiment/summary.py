@@ -25,7 +25,7 @@ FULL_MODEL_METRICS = ("distinct_per_hour", "failures_per_hour", "distinct_failur
 BASE_COLUMNS = ("problem", "profile", "algorithm", "run", "seed", "evaluations", "wall_s", "best_f1", "diversity")
 FULL_MODEL_COLUMNS = ("executions", "failures", "distinct_failures", "invalid_tests", "screened_out", "failures_per_hour",
                       "distinct_per_hour", "failure_rate", "rejected", "overrun_discarded", "execution_cost_s",
-                      "executors", "search_steps", "search_s", "execution_s", "charged_s", "waited_s",
+                      "executors", "search_steps", "search_s", "execution_s", "charged_s", "waited_s", "random_fill",
                       "first_failure_s", "failure_kinds")
 
 

@@ -5,7 +5,9 @@ all give the same pictures. The problem is rebuilt from the run config the log r
 are grouped by what failed (``sims.signature``, greedy in scenario order, as RQ3 counts them); each
 distinct one is executed again in process with the scenario's recorded seed, so that the picture
 has the full run (a thermostat's curves), and drawn from the logged trajectory when the run is not
-the logged one (another model, another machine's numbers). Files are never overwritten.
+the logged one (another model, another machine's numbers). The first failure counted as the same
+as an earlier one is drawn beside it (``same_failure_<a>_<b>.png``), so a reader can judge the
+grouping. Files are never overwritten.
 """
 from __future__ import annotations
 
@@ -15,7 +17,7 @@ from typing import Any
 
 from ..problems import get_problem
 from ..ros.runlog import read_metadata
-from ..sims.signature import DistinctFailures, signature
+from ..sims.signature import DistinctFailures, same_failure, signature
 from .replay import recorded_scenarios
 
 PICTURES_KEPT = 12
@@ -24,7 +26,7 @@ PICTURES_KEPT = 12
 def draw_failures(mcap: str | Path, out_dir: str | Path, limit: int = PICTURES_KEPT) -> dict[str, Any]:
     """One PNG per distinct certified failure (up to ``limit``) in ``out_dir``; what was drawn."""
     from ..sims.full_model import full_model_executor, scenario_seed
-    from ..viz.execution import save_execution_plot
+    from ..viz.execution import save_execution_plot, save_side_by_side
 
     rec = recorded_scenarios(mcap)
     config = json.loads(read_metadata(mcap).get("ambiegen_run", {}).get("config_json", "{}") or "{}")
@@ -33,21 +35,39 @@ def draw_failures(mcap: str | Path, out_dir: str | Path, limit: int = PICTURES_K
     full = full_model_executor(problem) if config.get("sim_model", "full") == "full" else None
     distinct = DistinctFailures()
     pictures: list[dict[str, Any]] = []
+    pair: dict[str, Any] | None = None  # what was drawn of it (None: nothing new)
+    paired = False
+    first_of: list[tuple[Any, int]] = []  # (distinct signature, its scenario id)
     out_dir = Path(out_dir)
+
+    def shown(sid: int):  # the full run when it is the logged one, else the logged trajectory
+        logged = rec.outcomes[sid]
+        if full is not None:
+            again = full.execute(rec.scenarios[sid], seed=scenario_seed(rec.seed, sid))
+            if again.failure_kind == logged.failure_kind:
+                return again
+        return logged
+
     for sid in sorted(rec.outcomes):
         logged, scenario = rec.outcomes[sid], rec.scenarios.get(sid)
         sig = None if scenario is None else signature(problem, scenario, logged)
-        if sig is None or not distinct.add(sig) or len(pictures) >= limit:
+        if sig is None:
             continue
-        shown = logged
-        if full is not None:
-            again = full.execute(scenario, seed=scenario_seed(rec.seed, sid))
-            if again.failure_kind == logged.failure_kind:
-                shown = again
+        if not distinct.add(sig):
+            if not paired:  # the first failure counted as an earlier one, and only that one
+                paired = True
+                a = next(first for s, first in first_of if same_failure(sig, s))
+                path = out_dir / f"same_failure_{a:05d}_{sid:05d}.png"
+                if not path.exists():
+                    save_side_by_side(problem, [(rec.scenarios[a], shown(a)), (scenario, shown(sid))], path,
+                                      f"counted as one failure: {sig.describe()}")
+                    pair = {"scenario_ids": [a, sid], "signature": sig.describe(), "path": str(path)}
+            continue
+        first_of.append((sig, sid))
         path = out_dir / f"failure_{sid:05d}_{sig.kind}.png"
-        if path.exists():  # never drawn over: an earlier picture stays
+        if len(pictures) >= limit or path.exists():  # never drawn over: an earlier picture stays
             continue
-        save_execution_plot(problem, scenario, shown, path)
+        save_execution_plot(problem, scenario, shown(sid), path)
         pictures.append({"scenario_id": sid, "signature": sig.describe(), "path": str(path)})
     return {"certified_failures": len(distinct.seen), "distinct_failures": len(distinct),
-            "failure_pictures": pictures}
+            "failure_pictures": pictures, "same_failure_pair": pair}

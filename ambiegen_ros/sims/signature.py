@@ -52,7 +52,7 @@ class FailureSignature:
         if self.problem == "vehicle":
             bend = "left" if self.place[1] > 0 else "right" if self.place[1] < 0 else "straight"
             radius = f"R {1 / abs(self.place[1]):.0f} m" if self.place[1] else "no curvature"
-            return f"{self.kind} at {self.place[0]:.0f} m, {bend} bend ({radius})"
+            return f"{self.kind}, first lane touch at {self.place[0]:.0f} m along the road, {bend} bend ({radius})"
         direction = {1: "step up", -1: "step down", 0: "no step"}[int(self.place[1])]
         return f"{self.kind} in schedule element {int(self.place[0])} ({direction})"
 

@@ -137,3 +137,21 @@ def save_execution_plot(problem: Any, scenario: Any, outcome: Any, path, plan: A
 
 
 __all__ = ["plot_execution", "save_execution_plot"]
+
+
+def save_side_by_side(problem: Any, runs: list[tuple[Any, Any]], path, title: str) -> Any:
+    """Executed scenarios side by side in one PNG (two failures counted as one, say); returns the path."""
+    from pathlib import Path
+
+    wide = problem.name == "thermostat"
+    fig, axes = plt.subplots(len(runs), 1, figsize=(10, 3.8 * len(runs)), layout="constrained") if wide else \
+        plt.subplots(1, len(runs), figsize=(6.5 * len(runs), 6.2), layout="constrained")
+    for ax, (scenario, outcome) in zip(np.atleast_1d(axes), runs):
+        plot_execution(problem, scenario, outcome, ax=ax)
+    fig.suptitle(title, fontsize=10)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+

@@ -5,6 +5,8 @@ what is asserted are events in virtual time, never the machine's speed.
 """
 from __future__ import annotations
 
+import math
+
 import json
 
 import numpy as np
@@ -90,7 +92,9 @@ def test_no_candidate_runs_before_the_search_produced_it_and_the_budget_holds(al
 def test_with_a_large_execution_cost_executions_are_budget_over_cost():
     out, _ = run(budget=300.0, cost=30.0, per_batch=0.01)
     assert abs(out["executions"] - 300.0 / 30.0) <= 1
-    assert out["charged_s"] == pytest.approx(out["executions"] * 30.0)  # measured 0 s on the fake clock
+    # executions measure 0 s on the fake clock; a random sample an idle executor drew is paid too
+    assert out["charged_s"] == pytest.approx(out["executions"] * 30.0 + out["execution_s"])
+    assert out["execution_s"] == pytest.approx(0.01 * math.ceil(out["random_fill"] / 64), abs=0.05)
     out2, _ = run(budget=300.0, cost=30.0, per_batch=0.01, executors=3)
     assert abs(out2["executions"] - 3 * 300.0 / 30.0) <= 3
 
@@ -105,12 +109,29 @@ def test_the_population_is_carried_on_never_restarted(monkeypatch):
 
     monkeypatch.setattr(Search, "__init__", counting_init)
     # cheap executions drain the queue: the search has to keep breeding, one generation per second
-    out, trace = run(budget=40.0, cost=0.05, per_batch=1.0)
+    # (executors wait for it here, so that every execution is the search's)
+    out, trace = run(budget=40.0, cost=0.05, per_batch=1.0, executor_idle="wait")
     assert len(made) == 1
     evals = [t["evaluations"] for t in trace]
     assert evals == sorted(evals) and evals[-1] > 3 * SETTINGS.evaluations
     assert out["evaluations"] >= evals[-1] and out["search_steps"] * 10 == out["evaluations"]
     assert out["waited_s"] > 0  # the executor waited for the search
+
+
+@pytest.mark.parametrize("executors", [1, 2])
+def test_an_executor_never_waits_for_the_search(executors):
+    """The same slow search: by default an executor without a candidate runs a valid random sample
+    of its own (produced when it starts), so no simulator idles and nothing waits."""
+    waiting, _ = run(budget=40.0, cost=0.05, per_batch=1.0, executors=executors, executor_idle="wait")
+    out, trace = run(budget=40.0, cost=0.05, per_batch=1.0, executors=executors)
+    assert waiting["waited_s"] > 0 and waiting["random_fill"] == 0
+    assert out["waited_s"] == 0 and out["random_fill"] > 0
+    assert out["executions"] + out["rejected"] > waiting["executions"] + waiting["rejected"]
+    for t in trace:
+        assert t["start"] >= t["produced"]
+    for e in range(executors):  # back to back on each executor's clock: no gap the search left
+        mine = [t for t in trace if t["executor"] == e]
+        assert all(b["start"] == pytest.approx(a["end"]) or b["start"] > a["end"] - 1e-12 for a, b in zip(mine, mine[1:]))
 
 
 def test_the_search_stops_after_its_guaranteed_budget_while_candidates_wait():
@@ -186,7 +207,7 @@ def test_execution_cost_is_charged_only_when_the_system_under_test_ran():
             return before if self.calls % 2 else out
 
     clock = FakeClock()
-    out = full_model_run(timed_problem(clock, 0.01), SETTINGS, HalfInvalid(clock, delay=0.5), fm(100.0, 10.0),
+    out = full_model_run(timed_problem(clock, 0.01), SETTINGS, HalfInvalid(clock, delay=0.5), fm(100.0, 10.0, executor_idle="wait"),
                          seed=3, clock=clock)
     assert out["invalid_tests"] == out["screened_out"] > 0 and out["executions"] > 0
     assert out["charged_s"] == pytest.approx(0.5 * (out["executions"] + out["screened_out"]) + 10.0 * out["executions"])

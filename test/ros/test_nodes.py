@@ -331,9 +331,16 @@ def test_a_campaign_draws_each_distinct_certified_failure(campaigns, tmp_path):
         path = Path(picture["path"])
         assert path.parent == out / "failures" and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert pictures[0]["path"] in output  # printed where a newcomer looks
+    pair = summary["same_failure_pair"]  # two failures counted as one, side by side, for a reader to judge
+    if summary["distinct_failures"] < summary["certified_failures"]:
+        assert Path(pair["path"]).read_bytes()[:4] == b"\x89PNG" and pair["path"] in output
+        assert pair["scenario_ids"][0] in [p["scenario_id"] for p in pictures]
+    else:
+        assert pair is None
     before = {p: p.stat().st_mtime_ns for p in (out / "failures").iterdir()}
     again = draw_failures(summary["mcap"], out / "failures")
     assert again["distinct_failures"] == summary["distinct_failures"] and again["failure_pictures"] == []
+    assert again["same_failure_pair"] is None  # already drawn: not drawn over
     assert {p: p.stat().st_mtime_ns for p in (out / "failures").iterdir()} == before
     elsewhere = draw_failures(summary["mcap"], tmp_path / "pictures")
     assert [Path(p["path"]).name for p in elsewhere["failure_pictures"]] == [Path(p["path"]).name for p in pictures]
