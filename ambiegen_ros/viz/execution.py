@@ -119,7 +119,8 @@ def plot_execution(problem: Any, scenario: Any, outcome: Any, ax=None, plan: Any
                 label="its plan")
     _mark_failure(ax, outcome)
     ax.set_title(_title(problem, outcome, system), fontsize=9)
-    ax.legend(loc="best", fontsize=7, framealpha=0.8)
+    if ax.get_legend_handles_labels()[0]:  # a run with nothing drawn (not executed) has no legend
+        ax.legend(loc="best", fontsize=7, framealpha=0.8)
     return ax
 
 
