@@ -245,8 +245,7 @@ class SutAdapter:
         for name in self.order.streams:  # every status kept: each one moves its stream's watermark
             n.create_subscription("diagnostic_msgs/msg/DiagnosticArray", self.topics[name],
                                   lambda msg, name=name: self.on_status(name, msg), sample_qos)
-        self.newest_stamp: int | None = None  # of the samples received so far (Nav2's result has no stamp)
-        self.nav2_stamp: int | None = None
+        self.nav2_stamp: int | None = None  # Nav2's result has no stamp: the newest sample's when it came
         self.plans, self.last_plan = 0, None  # the stack's plans since the goal went out, the last one
         self.pre_goal: tuple | None = None  # the last sample before the goal went out
         self._fast = None
@@ -295,7 +294,7 @@ class SutAdapter:
         self.job = job
         self.samples.clear()
         self.order.reset()
-        self.pre_goal, self.newest_stamp, self.nav2_stamp = None, None, None
+        self.pre_goal, self.nav2_stamp = None, None
         self._next_stream_check = 0.0
         self.plans, self.last_plan = 0, None
         job.started = time.monotonic()
@@ -464,7 +463,7 @@ class SutAdapter:
             # Nav2's result carries no stamp: it counts at the newest pose received before it, once
             # every sample up to there is judged (an earlier verdict from them stands)
             if self.nav2_stamp is None:
-                self.nav2_stamp = self.newest_stamp if self.newest_stamp is not None else -1
+                self.nav2_stamp = self.order.newest if self.order.newest is not None else -1
             if self.order.watermark >= self.nav2_stamp and not self.samples:
                 r = self.nav2.result
                 job.judge.fail("nav2_aborted", f"Nav2 {r['status']} its goal after {job.judge.elapsed:.1f} s (error "
@@ -516,7 +515,6 @@ class SutAdapter:
             key = 1 if self.stamp_clock == "receive" else 0  # no stamps to trust: arrival is the only order
             for row in self.samples:
                 self.order.sample(int(row[key]), row)
-                self.newest_stamp = int(row[key]) if self.newest_stamp is None else max(self.newest_stamp, int(row[key]))
             self.samples.clear()
         if job.first is None:
             # with the stack's status, the run starts at the state it first acted on (sample 0)

@@ -40,13 +40,16 @@ def draw_failures(mcap: str | Path, out_dir: str | Path, limit: int = PICTURES_K
     first_of: list[tuple[Any, int]] = []  # (distinct signature, its scenario id)
     out_dir = Path(out_dir)
 
-    def shown(sid: int):  # the full run when it is the logged one, else the logged trajectory
-        logged = rec.outcomes[sid]
-        if full is not None:
-            again = full.execute(rec.scenarios[sid], seed=scenario_seed(rec.seed, sid))
-            if again.failure_kind == logged.failure_kind:
-                return again
-        return logged
+    runs: dict[int, Any] = {}
+
+    def shown(sid: int):  # the full run when it is the logged one, else the logged trajectory (each run once)
+        if sid not in runs:
+            logged = runs[sid] = rec.outcomes[sid]
+            if full is not None:
+                again = full.execute(rec.scenarios[sid], seed=scenario_seed(rec.seed, sid))
+                if again.failure_kind == logged.failure_kind:
+                    runs[sid] = again
+        return runs[sid]
 
     for sid in sorted(rec.outcomes):
         logged, scenario = rec.outcomes[sid], rec.scenarios.get(sid)

@@ -57,11 +57,12 @@ class StampOrder:
         self.streams: dict[str, EventStream] = {name: EventStream(name, applies) for name, applies in streams}
         self.pending: deque[tuple[int, Any]] = deque()
         self.start: int | None = None  # stamp of the run's first sample
+        self.newest: int | None = None  # stamp of the newest sample received
 
     def reset(self) -> None:
         """A new run: no samples, no events; every stream open and waited for again."""
         self.pending.clear()
-        self.start = None
+        self.start = self.newest = None
         for s in self.streams.values():
             s.mark, s.event, s.closed, s.first = -math.inf, None, None, None
 
@@ -74,6 +75,7 @@ class StampOrder:
                 if s.first is not None and s.first < stamp:
                     s.first = None
         self.pending.append((stamp, row))
+        self.newest = stamp if self.newest is None else max(self.newest, stamp)
 
     def message(self, name: str, stamp: int, event: Any = None) -> None:
         s = self.streams[name]
