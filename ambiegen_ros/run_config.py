@@ -28,17 +28,21 @@ SETTING_NAMES = tuple(f.name for f in fields(SearchSettings))
 
 
 def make_run(
-    problem: str | None = None, config_file: str | Path | None = None, profile: str | None = None, **overrides: Any
+    problem: str | None = None, config_file: str | Path | None = None, profile: str | None = None,
+    problem_defaults: dict[str, Any] | None = None, **overrides: Any
 ) -> tuple[Problem, SearchSettings]:
     """Build the problem and the resolved settings; ``None`` overrides are ignored.
 
-    ``profile`` (replication | refined) wins over the file's ``problem_config.profile``. A missing
-    seed is drawn here so that it can be recorded with the run.
+    ``profile`` (replication | refined) wins over the file's ``problem_config.profile``, which wins
+    over ``problem_defaults`` (e.g. a problem's ``certified_search``). A missing seed is drawn here
+    so that it can be recorded with the run.
     """
     file_cfg = load_config_file(config_file)
     name = problem or file_cfg.get("problem")
     if not name:
         raise ConfigError(f"problem is required (allowed: {'|'.join(PROBLEM_NAMES)})")
+    if problem_defaults:
+        file_cfg = {**file_cfg, "problem_config": {**problem_defaults, **(file_cfg.get("problem_config") or {})}}
     case = _build_problem(name, file_cfg, profile)
     values = {k: v for k, v in file_cfg.items() if k not in ("problem", "problem_config")}
     given = {k: v for k, v in overrides.items() if v is not None}

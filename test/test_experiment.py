@@ -190,3 +190,30 @@ def test_report_warns_only_when_the_runs_cannot_decide(runs, warned):
     text = report(config, records, doc, plots=[])
     assert ("Too few runs to decide" in text) is warned
     assert "| 16.3 (16) |" in text and "| 7.874 (30) |" in text  # the stored medians, with their run counts
+
+
+def test_full_model_searches_for_certified_failures_unless_told_the_papers_way():
+    """Issue 26: --full-model's default search climbs each problem's certified objective; RQ1/RQ2 and
+    --search-for paper keep the paper's objective and the replication profile; the user's own
+    --profile and problem_config win key by key."""
+    from ambiegen_ros.experiment.spec import resolve
+
+    def identity(**kw):
+        return resolve(ExperimentSpec(**{"problem": "vehicle", "algorithms": ("nsga2",), "runs": 1, **kw}))
+
+    certified = identity(full_model=True, time_budget=60)
+    assert (certified["profile"], certified["problem_config"]["objective"]) == ("refined", "certified")
+    assert certified["full_model"]["search_for"] == "certified" and certified["full_model"]["novelty"] is True
+    paper = identity(full_model=True, time_budget=60, search_for="paper")
+    assert (paper["profile"], paper["problem_config"]["objective"]) == ("replication", "max_deviation")
+    rq1 = identity(evaluations=100)
+    assert (rq1["profile"], rq1["problem_config"]["objective"]) == ("replication", "max_deviation")
+    mine = identity(full_model=True, time_budget=60, profile="replication")
+    assert (mine["profile"], mine["problem_config"]["objective"]) == ("replication", "certified")
+    thermostat = resolve(ExperimentSpec(problem="thermostat", algorithms=("ga",), runs=1, full_model=True,
+                                        time_budget=60))
+    assert thermostat["problem_config"]["objective"] == "certified" and thermostat["profile"] == "refined"
+    assert resolve(ExperimentSpec(problem="robot", algorithms=("ga",), runs=1, full_model=True,
+                                  time_budget=60))["profile"] == "refined"
+    with pytest.raises(ValueError, match="--search-for"):
+        identity(full_model=True, time_budget=60, search_for="fast")

@@ -18,7 +18,8 @@ def _spec_from_args(args: argparse.Namespace):
         evaluations=args.evaluations, time_budget=args.time_budget, full_model=args.full_model,
         config_file=args.config, sim_options=parse_options(args.set), distinct_distance=args.distinct_distance,
         clock=args.clock, executors=args.executors, execution_cost=args.execution_cost,
-        signature_radius=args.signature_radius, executor_idle=args.executor_idle,
+        signature_radius=args.signature_radius, executor_idle=args.executor_idle, search_for=args.search_for,
+        novelty=not args.no_novelty,
     )
 
 
@@ -77,7 +78,9 @@ def register(sub) -> None:
     budget.add_argument("--time-budget", type=float, metavar="S",
                         help="seconds per run (RQ1/RQ2: of search; --full-model: on the executors' clocks, default 7200)")
     p.add_argument("--full-model", action="store_true", help="RQ3: execute scenarios on the full-model simulators")
-    p.add_argument("--profile", choices=PROFILES, help="fidelity profile of the problem (default: replication)")
+    p.add_argument("--profile", choices=PROFILES,
+                   help="fidelity profile of the problem (default: replication; with --full-model, the profile "
+                        "--search-for certified chooses: refined)")
     p.add_argument("--seed", type=int, default=0, help="base seed; run k uses seed + k (default 0)")
     p.add_argument("--resume", action="store_true", help="continue an experiment in --out: skip runs already done")
     add_config_option(p)
@@ -99,9 +102,18 @@ def register(sub) -> None:
     p.add_argument("--execution-cost", type=float, default=0.0, metavar="S",
                    help="--full-model: seconds of budget charged per execution on top of the measured time, "
                         "without sleeping (e.g. 30 for a 30 s simulator; default 0)")
+    p.add_argument("--search-for", choices=("certified", "paper"), default="certified",
+                   help="--full-model: what the surrogate search climbs: certified failures (default: the "
+                        "reference's static check as validity, F1 relative to the reference, e.g. the vehicle's "
+                        "refined roads scored by its brisk and cautious drivers; docs/search_for_certified.md) or "
+                        "the paper's F1 and profile")
+    p.add_argument("--no-novelty", action="store_true",
+                   help="--full-model: a search's executor also runs candidates whose predicted failure is the "
+                        "same as one already found (default: it skips them; random search never does)")
     p.add_argument("--signature-radius", type=float, metavar="R",
                    help="--full-model: two failures of the same kind are the same when this close: robot metres "
-                        "(default 2), vehicle metres of road (default 10), thermostat schedule elements (default 0)")
+                        "(default 2), vehicle degrees of the failing bend's turn (default 30), thermostat degC of the "
+                        "set-point step into the failing element (default 1); docs/search_for_certified.md")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_experiment)
 

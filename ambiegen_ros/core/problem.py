@@ -79,6 +79,10 @@ class Problem(ABC):
     f1_label: ClassVar[str]  # e.g. "RMSE [degC]" for plots and summaries
     paper_budget: ClassVar[Budget]
     Config: ClassVar[type]  # a dataclass with every tunable number; must have an ``alpha`` field
+    # problem_config a search for *certified* failures runs with by default (``experiment --full-model``,
+    # issue 26): the surrogate's validity is the reference's static check, its F1 relative to the
+    # reference. Empty: the paper's own setting is that search.
+    certified_search: ClassVar[dict[str, Any]] = {}
 
     def __init__(self, config: Any = None, **overrides: Any):
         # Config fields may default per profile (None resolved in __post_init__): build the config

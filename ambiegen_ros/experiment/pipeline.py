@@ -49,11 +49,12 @@ from typing import Any, Callable
 import numpy as np
 
 from ..core.accel import SMALL_BATCH
-from ..sims.signature import DistinctFailures, signature
+from ..sims.signature import DistinctFailures, predicted_signature, same_failure, signature
 
 SAMPLE_CAP = 1000  # executions kept per run for the surrogate-vs-full-model correlation
 DISTINCT_KEPT = 24  # distinct failures kept per run (scenario, seed) for the failure gallery
 UNBOUNDED = 10**12  # the carried-on search has no evaluation budget of its own
+PREDICTED_PLACE = ("failure_arc", "failure_hour")  # surrogate metrics that place a predicted failure (``predicted_signature``)
 
 _WARM: set[tuple[str, bool]] = set()
 
@@ -86,6 +87,7 @@ class Candidate:
     f1: float
     produced_s: float
     order: int
+    predicted: dict | None = None  # the surrogate's metrics that say where it predicts a failure
 
 
 class CandidateQueue:
@@ -99,13 +101,13 @@ class CandidateQueue:
         self._keys: set[bytes] = set()
         self._order = itertools.count()
 
-    def push(self, row: np.ndarray, f1: float, produced_s: float) -> bool:
+    def push(self, row: np.ndarray, f1: float, produced_s: float, predicted: dict | None = None) -> bool:
         """Add a candidate once (a scenario already queued or executed is not added again)."""
         key = np.asarray(row, dtype=float).tobytes()
         if key in self._keys:
             return False
         self._keys.add(key)
-        self._future.append(Candidate(np.array(row, dtype=float), float(f1), produced_s, next(self._order)))
+        self._future.append(Candidate(np.array(row, dtype=float), float(f1), produced_s, next(self._order), predicted))
         return True
 
     def _priority(self, c: Candidate) -> float:
@@ -168,18 +170,20 @@ class SearchProcess:
         f1 = np.where(ev.valid, np.nan_to_num(ev.f1, nan=0.0), 0.0).astype(float)
         pick = np.asarray(ev.valid, dtype=bool) if self.random else (np.asarray(ev.valid, dtype=bool)
                                                                       & (f1 > self.problem.alpha))
-        rows = [(X[i], f1[i]) for i in np.flatnonzero(pick)]
+        place = {k: ev.metrics[k] for k in PREDICTED_PLACE if k in ev.metrics}
+        rows = [(X[i], f1[i], {k: float(v[i]) for k, v in place.items()} or None) for i in np.flatnonzero(pick)]
         if not self.random:
             pop = self.search.suite_population()
             for ind in pop:
                 info = ind.get("info")
                 if info is not None and info.get("valid"):
-                    rows.append((ind.get("X"), float(ind.get("f1"))))
+                    rows.append((ind.get("X"), float(ind.get("f1")),
+                                 {k: float(info[k]) for k in PREDICTED_PLACE if k in info} or None))
         spent = self.clock() - t0
         self.t += spent
         self.busy += spent
         self.steps += 1
-        return sum(self.queue.push(row, f, self.t) for row, f in rows)
+        return sum(self.queue.push(row, f, self.t, pred) for row, f, pred in rows)
 
 
 class RandomFill:
@@ -240,6 +244,8 @@ class FullModelTally:
         self.executions = self.rejected = self.overrun = self.invalid_tests = self.screened_out = 0
         self.failures = 0
         self.distinct = DistinctFailures(signature_radius)
+        self._sig_end: list[float] = []  # when each of ``distinct.seen`` was certified
+        self.predicted_repeats = 0  # candidates skipped as predicted repeats of a found failure
         self.kinds: dict[str, int] = {}
         self.failure_nearest: list[float] = []  # each failure's Jaccard distance to the earlier ones
         self.failure_times: list[float] = []
@@ -279,6 +285,20 @@ class FullModelTally:
 
     def skip(self, row: np.ndarray, now: float) -> bool:
         return self.seen(row) or self.near_failure(row, now)
+
+    def predicted_repeat(self, cand: Candidate, now: float) -> bool:
+        """Does the surrogate predict the same failure (``sims.signature``) as one certified by ``now``?
+        A search's executor skips it: a tester wants failures unlike the ones found."""
+        known = [sig for sig, end in zip(self.distinct.seen, self._sig_end) if end <= now]
+        if not cand.predicted or not known:
+            return False
+        guess = predicted_signature(self.problem, self.problem.codec.from_row(cand.row), cand.predicted)
+        if guess is None:
+            return False
+        if any(same_failure(guess, sig, self.signature_radius) for sig in known):
+            self.predicted_repeats += 1
+            return True
+        return False
 
     def dispatch(self, row: np.ndarray) -> int:
         """Mark a scenario as sent to an executor; returns its index k in the run (its simulator seed's)."""
@@ -322,6 +342,7 @@ class FullModelTally:
             self._failed = (np.concatenate([self._failed[0], G]), np.concatenate([self._failed[1], L]))
             self._failed_end = np.append(self._failed_end, end_s)
             sig = signature(self.problem, scenario, outcome, self.signature_radius)
+            self._sig_end.append(end_s)
             if self.distinct.add(sig) and len(self.distinct_examples) < DISTINCT_KEPT:
                 self.distinct_examples.append({
                     "signature": sig.to_dict(), "describe": sig.describe(), "kind": outcome.failure_kind,
@@ -372,6 +393,7 @@ class FullModelTally:
             "failure_rate": self.failures / self.executions if self.executions else 0.0,
             "failure_kinds": dict(sorted(self.kinds.items())),
             "first_failure_s": self.failure_times[0] if self.failure_times else None,
+            "predicted_repeats": self.predicted_repeats,
             "execution_s": round(self.execution_s, 3),
             "charged_s": round(self.charged_s, 3),
             "diversity": self.failure_diversity(),
@@ -394,6 +416,7 @@ def full_model_run(problem, settings, executor, fm: dict[str, Any], seed: int,
     queue = CandidateQueue(best_first=settings.algorithm != "random")
     search = SearchProcess(problem, settings, queue, clock)
     tally = FullModelTally(problem, seed, fm.get("distinct_distance", 0.0), fm.get("signature_radius"))
+    novelty = settings.algorithm != "random" and fm.get("novelty", True)  # random search stays plain sampling
     free = [0.0] * max(1, int(fm.get("executors", 1)))  # each executor's clock
     waited = 0.0
     fill = RandomFill(problem, np.random.default_rng([seed, 11])) if fm.get("executor_idle", "random") == "random" \
@@ -406,7 +429,10 @@ def full_model_run(problem, settings, executor, fm: dict[str, Any], seed: int,
         while search.wanted() and search.t <= now:  # everything the search has produced by `now`
             search.step()
         t0 = clock()
-        cand = queue.pop(now, lambda c: tally.skip(c.row, now))
+        if novelty:
+            cand = queue.pop(now, lambda c: tally.skip(c.row, now) or tally.predicted_repeat(c, now))
+        else:
+            cand = queue.pop(now, lambda c: tally.skip(c.row, now))
         if cand is None and fill is not None and (queue.next_time() is not None or search.exhausted):
             drawn = fill.draw(lambda row: tally.skip(row, now))  # the search is busy: never idle
             if drawn is not None:

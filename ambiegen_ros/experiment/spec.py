@@ -27,7 +27,8 @@ class ExperimentError(ValueError):
     """A bad experiment request (refused before anything is written or overwritten)."""
 
 
-EXECUTOR_IDLE = ("random", "wait")  # an idle executor runs a valid random sample, or waits for the search
+EXECUTOR_IDLE = ("random", "wait")
+SEARCH_FOR = ("certified", "paper")  # --full-model: the problem's ``certified_search`` setting, or the paper's  # an idle executor runs a valid random sample, or waits for the search
 
 
 @dataclass
@@ -48,6 +49,8 @@ class ExperimentSpec:
     execution_cost: float = 0.0
     signature_radius: float | None = None
     executor_idle: str = "random"  # --full-model: what an executor without a candidate does
+    search_for: str = "certified"  # --full-model: "certified" (``Problem.certified_search``) | "paper"
+    novelty: bool = True  # --full-model: a search's executor skips predicted repeats of found failures
 
     def check(self) -> None:
         from ..core.search import ALGORITHMS
@@ -75,6 +78,8 @@ class ExperimentSpec:
             raise ExperimentError("--executors: must be >= 1")
         if not (self.execution_cost >= 0 and self.execution_cost < float("inf")):
             raise ExperimentError("--execution-cost: must be >= 0 seconds")
+        if self.search_for not in SEARCH_FOR:
+            raise ExperimentError(f"--search-for: {'|'.join(SEARCH_FOR)}")
         if self.executor_idle not in EXECUTOR_IDLE:
             raise ExperimentError(f"--executor-idle: {'|'.join(EXECUTOR_IDLE)}")
         if self.signature_radius is not None and not self.signature_radius >= 0:
@@ -89,9 +94,12 @@ def _plain_json(value: Any) -> Any:
 def resolve(spec: ExperimentSpec) -> dict[str, Any]:
     """The experiment's identity: everything that changes a run's result (checked on --resume)."""
     from ..core.config import load_config_file
+    from ..problems import problem_class
     from ..run_config import make_run
 
     spec.check()
+    certified = spec.full_model and spec.search_for == "certified"
+    defaults = problem_class(spec.problem).certified_search if certified else None
     settings: dict[str, Any] = {}
     problem = None
     file_cfg = load_config_file(spec.config_file)
@@ -108,7 +116,8 @@ def resolve(spec: ExperimentSpec) -> dict[str, Any]:
         else:
             overrides["evaluations"] = spec.evaluations
             overrides["time_budget"] = spec.time_budget
-        problem, s = make_run(spec.problem, spec.config_file, profile=spec.profile, **overrides)
+        problem, s = make_run(spec.problem, spec.config_file, profile=spec.profile, problem_defaults=defaults,
+                              **overrides)
         entry = dataclasses.asdict(s)
         entry.pop("seed")
         settings[alg] = entry
@@ -134,6 +143,8 @@ def resolve(spec: ExperimentSpec) -> dict[str, Any]:
             "execution_cost_s": spec.execution_cost,
             "distinct_distance": spec.distinct_distance,
             "executor_idle": spec.executor_idle,
+            "search_for": spec.search_for,
+            "novelty": spec.novelty,
             "signature_radius": (DEFAULT_RADIUS[problem.name] if spec.signature_radius is None
                                  else spec.signature_radius),
             "simulator": executor.config_dict(),
@@ -159,5 +170,5 @@ def differences(a: Any, b: Any, prefix: str = "") -> list[str]:
     return [] if a == b else [prefix or "(root)"]
 
 
-__all__ = ["PAPER_RQ3_BUDGET_S", "RQ3_ROUNDS", "ExperimentError", "ExperimentSpec",
+__all__ = ["PAPER_RQ3_BUDGET_S", "RQ3_ROUNDS", "SEARCH_FOR", "ExperimentError", "ExperimentSpec",
            "differences", "resolve", "run_identity"]

@@ -34,6 +34,12 @@ minus that of an ideal controller on the same schedule, both with the surrogate'
 (``thermostat_model.ideal_config``), so that schedules no controller can follow (which the RMSE
 rewards) score near 0; ``alpha`` then defaults to 0.3 degC. It costs a second, finer simulation.
 
+``objective="certified"`` (issue 26) scores what RQ3 counts: S and R are the RMSEs of the
+thermostat and of the ideal controller on the full model's room (``sims.room``: 60 s control
+period, 10 s sampling, no sensor noise; ``thermostat_model.simulate_room``), F1 = min(S, 2 req -
+R) and alpha = req, so F1 > alpha means "fails, and the reference passes"; ``certified_cap`` stops
+F1 at req + cap. The thermostat's reference has no static check, so validity is unchanged.
+
 Other choices: schedules shorter than 24 h are simulated over their own length; invalid schedules
 get F1 = 0 and zero metrics except ``duration_min``; ``environment`` still simulates them and says
 why they are invalid; element numbers in reasons are 0-based, like ``ScenarioError`` paths.
@@ -51,7 +57,7 @@ from ..core.problem import Budget, Evaluation, Problem
 from ..core.scenario import Scenario
 from .thermostat_model import (DUR, DURATION, MODEL, REPLICATION_DURATION, ROOM_MODEL, ROOM_MODELS, SCALAR_BATCH,
                                TEMP, TEMPERATURE, BatchRun, ThermostatConfig, compiled_loaded, ideal_config,
-                               schedule_steps, simulate_batch, simulate_rows, simulate_schedule)
+                               schedule_steps, simulate_batch, simulate_room, simulate_rows, simulate_schedule)
 
 
 # --- the environment ("TC to environment") -------------------------------------------------------
@@ -97,11 +103,16 @@ class ThermostatProblem(Problem):
     f1_label: ClassVar[str] = "RMSE to schedule [degC]"
     paper_budget: ClassVar[Budget] = Budget(250, 250, 50000)
     Config: ClassVar[type] = ThermostatConfig
+    # RQ3 (issue 26): refined restrictions let a day step down 4 degC at a time (the replication
+    # profile caps the whole day's span at 5); the cap spreads the search over many clear failures
+    certified_search: ClassVar[dict] = {"profile": "refined", "objective": "certified", "certified_cap": 0.1}
 
     def __init__(self, config: Any = None, **overrides: Any):
         super().__init__(config, **overrides)
         if self.config.objective == "reference_relative":
             self.f1_label = "RMSE above an ideal controller's [degC]"
+        elif self.config.objective == "certified":
+            self.f1_label = "min(RMSE, 2 x requirement - ideal controller's RMSE) [degC]"
         n_models = len(self.config.room_models)
         if n_models < self.attributes[MODEL].high:
             raise ScenarioError("config.room_models", f"{n_models} rows", f"{self.attributes[MODEL].high} rows")
@@ -260,11 +271,37 @@ class ThermostatProblem(Problem):
         lengths = np.asarray(lengths, dtype=int)
         valid, reasons, total, scored = self.check(G, lengths)
         rows = np.flatnonzero(valid)
+        if self.config.objective == "certified":
+            return self._certified(G, scored, rows, valid, reasons, total)
         f1, max_error = self._rmse(G, scored, rows, self.config)
         metrics = {"rmse": f1.copy(), "max_error": max_error, "duration_min": total, "scored_elements": scored}
         if self.config.objective == "reference_relative":
             metrics["reference_rmse"], _ = self._rmse(G, scored, rows, ideal_config(self.config))
             f1 = f1 - metrics["reference_rmse"]
+        return Evaluation(f1=f1, valid=valid, reasons=reasons, metrics=metrics)
+
+    def _certified(self, G, scored, rows, valid, reasons, total) -> Evaluation:
+        """F1 of ``objective="certified"`` (issue 26): ``min(S, 2 req - R)``, clipped at 0, where S is
+        the thermostat's RMSE and R the ideal controller's, both on the full model's room, control
+        period and sampling (``simulate_room``, no sensor noise). F1 - req is the smaller of the two
+        margins a certified failure needs (S above the requirement, R below it), so F1 > alpha = req
+        says "the full model fails and its reference passes", and the search is pushed away from
+        schedules the reference fails too (where the RMSE objective climbs: invalid tests). With
+        ``certified_cap``, F1 stops at req + cap: past a clear margin, one failure is as good as
+        another, so the search spreads over many instead of deepening one.
+        """
+        P = len(G)
+        S, R, max_error, hour = np.zeros(P), np.zeros(P), np.zeros(P), np.full(P, np.nan)
+        if len(rows):
+            S[rows], max_error[rows], hour[rows] = simulate_room(G[rows], scored[rows], self.config)
+            R[rows] = simulate_room(G[rows], scored[rows], self.config, ideal=True)[0]
+        req = float(self.config.requirement_rmse)
+        f1 = np.maximum(np.minimum(S, 2.0 * req - R), 0.0)
+        if self.config.certified_cap is not None:  # every clear failure alike: diversity decides among them
+            f1 = np.minimum(f1, req + float(self.config.certified_cap))
+        f1 = np.where(valid, f1, 0.0)
+        metrics = {"rmse": S, "reference_rmse": R, "max_error": max_error, "duration_min": total,
+                   "scored_elements": scored, "failure_hour": hour}
         return Evaluation(f1=f1, valid=valid, reasons=reasons, metrics=metrics)
 
     @staticmethod

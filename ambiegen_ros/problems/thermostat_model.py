@@ -49,7 +49,7 @@ DURATION = IntRange("duration", 60, 240, 15, tolerance=15, unit="min")  # the pa
 REPLICATION_DURATION = IntRange("duration", 60, 285, 15, tolerance=15, unit="min")
 
 
-OBJECTIVES = ("rmse", "reference_relative")
+OBJECTIVES = ("rmse", "reference_relative", "certified")
 
 
 @dataclass(frozen=True)
@@ -70,6 +70,11 @@ class ThermostatConfig:
     engine: str = "auto"  # "auto": the compiled loop when numba imports, else numpy | "numpy"
     objective: str = "rmse"  # F1: "rmse" (the paper) | "reference_relative" (RMSE minus an ideal controller's)
     reference_step_minutes: float = 0.5  # the ideal controller decides this often (a divisor of step_minutes)
+    # objective "certified" only (issue 26): the full model's room, controller period and sampling
+    control_seconds: float = 60.0  # the thermostat decides this often (sims.room's control_period)
+    sample_seconds: float = 10.0  # integration / error-sampling step; the ideal decides every step (sims.room's dt)
+    model_step_seconds: float = 180.0  # the step the room curves were fitted on (sims.room's model_step)
+    certified_cap: float | None = None  # F1 stops rising this far above the requirement [degC]; None: no cap
 
     def __post_init__(self):
         check_profile(self.profile)
@@ -79,7 +84,8 @@ class ThermostatConfig:
             raise ScenarioError("config.room_models", "each row needs 4 numbers", "(k_on1, k_on2, k_off1, k_off2)")
         object.__setattr__(self, "room_models", table)
         if self.alpha is None:  # relative: about the 99th percentile of sampled valid days (0.28 degC)
-            object.__setattr__(self, "alpha", 1.5 if self.objective == "rmse" else 0.3)
+            alpha = {"rmse": 1.5, "reference_relative": 0.3, "certified": self.requirement_rmse}
+            object.__setattr__(self, "alpha", alpha.get(self.objective, 1.5))
         if self.markov_max_step is None:
             object.__setattr__(self, "markov_max_step", 5 if self.profile == "replication" else 4)
         if self.engine not in ("auto", "numpy"):
@@ -94,6 +100,13 @@ class ThermostatConfig:
         if self.objective == "reference_relative" and (ratio < 1 or abs(ratio - round(ratio)) > 1e-9):
             raise ScenarioError("config.reference_step_minutes", "must divide step_minutes",
                                 f"{self.step_minutes:g} / k for k = 1, 2, ...")
+        every = self.control_seconds / self.sample_seconds if self.sample_seconds > 0 else 0.0
+        if self.objective == "certified" and (every < 1 or abs(every - round(every)) > 1e-9
+                                              or self.model_step_seconds <= 0):
+            raise ScenarioError("config.control_seconds", "must be a multiple of sample_seconds (both > 0)",
+                                f"k * {self.sample_seconds:g} s for k = 1, 2, ...")
+        if self.certified_cap is not None and not self.certified_cap > 0:
+            raise ScenarioError("config.certified_cap", "must be > 0 (or null: no cap)")
         if not 0.0 <= self.p_stay <= 1.0:
             raise ScenarioError("config.p_stay", "must be a probability", "0..1")
 
@@ -374,6 +387,87 @@ def simulate_rows(G: np.ndarray, lengths: np.ndarray, config: ThermostatConfig) 
     _ROWS_KERNEL(first, count, np.ascontiguousarray(G[:, :, TEMP]), base, G[:, 0, TEMP].copy(), A.ravel(),
                  A.shape[1], B, float(config.hysteresis), config.replication, config.replication, sumsq, maxabs)
     return np.sqrt(sumsq / np.maximum(n_steps, 1)), maxabs
+
+
+def _room_rows(count, goal, model, T_init, k_on1, decay_on, k_off1, decay_off, every, h, sumsq, maxabs, worst):
+    """``sims.room.heat`` without noise or quantisation, every schedule of a batch (numba when
+    available): the room relaxes towards ``anchor +- k1`` (anchor = temperature at the last switch;
+    not reset at element boundaries), the controller decides every ``every`` steps of the global
+    clock, and the error is sampled after each step. ``count[p, j]`` = steps of element j;
+    ``worst[p]`` = the step after which the error was largest (first of equals, as sims.room)."""
+    for p in range(count.shape[0]):
+        T = T_init[p]
+        on = True
+        anchor = T
+        k = 0
+        acc = 0.0
+        top = 0.0
+        at = 0
+        for j in range(count.shape[1]):
+            c = count[p, j]
+            if c == 0:
+                continue
+            g = goal[p, j]
+            m = model[p, j]
+            up = g + h
+            lo = g - h
+            for _ in range(c):
+                if k % every == 0:
+                    if on and T >= up:
+                        on = False
+                        anchor = T
+                    elif (not on) and T < lo:
+                        on = True
+                        anchor = T
+                if on:
+                    level = anchor + k_on1[m]
+                    T = level + (T - level) * decay_on[m]
+                else:
+                    level = anchor - k_off1[m]
+                    T = level + (T - level) * decay_off[m]
+                e = abs(T - g)
+                if e > top:
+                    top = e
+                    at = k
+                acc += e * e
+                k += 1
+        sumsq[p] = acc
+        maxabs[p] = top
+        worst[p] = at
+
+
+_ROOM_KERNEL: Any = None  # compiled ``_room_rows``, or False without numba
+
+
+def simulate_room(G: np.ndarray, lengths: np.ndarray, config: ThermostatConfig, ideal: bool = False,
+                  engine: str | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """RMSE, max |error| and the hour of the largest error (``Outcome.failure_point[0]``'s) of each schedule on the full model's room (``sims.room.heat``'s
+    dynamics, sampling and controller period, no sensor noise): the ``certified`` objective's
+    surrogate, so that its F1 ranks schedules as the full model and its reference do. ``ideal``:
+    the reference controller (no hysteresis, deciding every sample step). Elements must last whole
+    sample steps (durations are multiples of 15 min)."""
+    global _ROOM_KERNEL
+    G = np.asarray(G, dtype=float)
+    lengths = np.asarray(lengths, dtype=int)
+    dt = float(config.sample_seconds)
+    every = 1 if ideal else int(round(config.control_seconds / dt))
+    h = 0.0 if ideal else float(config.hysteresis)
+    used = np.arange(G.shape[1])[None, :] < lengths[:, None]
+    count = np.where(used, np.rint(G[:, :, DUR] * 60.0 / dt), 0).astype(np.int64)
+    k = np.asarray(config.room_models, dtype=float)
+    rate = dt / float(config.model_step_seconds)
+    args = (count, np.ascontiguousarray(G[:, :, TEMP]), np.where(used, G[:, :, MODEL] - 1, 0).astype(np.int64),
+            G[:, 0, TEMP].copy(), k[:, 0].copy(), np.exp(-k[:, 1] * rate), k[:, 2].copy(), np.exp(-k[:, 3] * rate),
+            every, h)
+    P = len(G)
+    sumsq, maxabs, worst = np.zeros(P), np.zeros(P), np.zeros(P, dtype=np.int64)
+    if _ROOM_KERNEL is None and (engine or config.engine) != "numpy":
+        from ..core.accel import jit
+
+        _ROOM_KERNEL = jit(_room_rows) or False
+    kernel = _ROOM_KERNEL if (_ROOM_KERNEL and (engine or config.engine) != "numpy") else _room_rows
+    kernel(*args, sumsq, maxabs, worst)
+    return np.sqrt(sumsq / np.maximum(count.sum(axis=1), 1)), maxabs, (worst + 1) * dt / 3600.0
 
 
 def schedule_steps(

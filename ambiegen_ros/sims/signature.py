@@ -6,15 +6,20 @@ signature is ``(problem, kind, place)``; two signatures are the *same failure* w
 
 * **robot**: the same kind and failure points (``Outcome.failure_point``, x/y in m) at most
   ``radius`` apart (default 2 m). A failure without a point only matches one without a point.
-* **vehicle**: the same kind, the places where the car left the lane (``metrics
-  ["departure_arc_length"]``, the first lane touch; else ``oob_arc_length``; metres along the road's
-  centre line) at most ``radius`` apart (default 10 m), and the stretch's signed curvature (the
-  curvature of largest magnitude over the ``radius`` metres of road before that place, i.e. the bend
-  that threw the car out; > 0 = left bend) within ``curvature_tolerance`` (default 0.01 1/m: a 20 m
-  and a 25 m bend are the same, a left and a right bend never are).
-* **thermostat**: the same kind, the same schedule element (the element containing the hour of
-  the worst error, ``failure_point[0]``; indices at most ``radius`` apart, default 0) and the same
-  direction of the set-point change into that element (up, down or none).
+* **vehicle**: the same kind and the same *failing bend*, by its shape, wherever it lies on its
+  road (``failing_bend``): the bend of largest curvature in the ``BEND_LOOKBACK`` metres of road
+  before the place where the car left the lane (``metrics["departure_arc_length"]``, the first lane
+  touch; else ``oob_arc_length``). Its shape is its direction (a left and a right bend are never
+  the same), its sharpest curvature (within ``curvature_tolerance``, default 0.01 1/m: R 20 m and
+  R 25 m are the same), how far it turns (within ``radius`` degrees, default 30) and how the car
+  came into it (``ENTRIES``: after a long straight, a short one, an opposite bend, a bend the same
+  way). Where along its road the bend lies does not matter: two roads are compared by shape, as
+  the SBFT tool competition compares failing road segments.
+* **thermostat**: the same kind and the same *kind of schedule element* where the worst error
+  fell (``failure_point[0]``, hours), wherever it lies in its day: the set-point step into it
+  (direction up/down/none, and its size within ``radius`` degC, default 1), its room model and its
+  duration band (``DURATION_BANDS``: up to 2 h, up to 3 h, longer). An element's index means
+  nothing across two schedules: a failure one element later in a shifted day is the same failure.
 
 A run's distinct failures are counted greedily in execution order (``DistinctFailures``): a failure
 is distinct when it is not the same as any earlier failure of the run. ROS-free.
@@ -26,14 +31,21 @@ from typing import Any
 
 import numpy as np
 
-DEFAULT_RADIUS = {"robot": 2.0, "vehicle": 10.0, "thermostat": 0.0}
+DEFAULT_RADIUS = {"robot": 2.0, "vehicle": 30.0, "thermostat": 1.0}
+DURATION_BANDS = (120.0, 180.0)  # min: an element up to 2 h, up to 3 h, or longer (thermostat)
 CURVATURE_TOLERANCE = 0.01  # 1/m (vehicle)
+BEND_CURVATURE = 0.01  # 1/m: sharper than R 100 m is a bend (vehicle)
+BEND_LOOKBACK = 40.0  # m of road before the lane departure searched for the bend that threw the car out
+LONG_STRAIGHT = 60.0  # m: a brisk car reaches most of its 70 km/h on a straight this long
+ENTRIES = ("after a long straight", "after a short straight", "after an opposite bend", "after a bend the same way")
 
 
 @dataclass(frozen=True)
 class FailureSignature:
-    """What failed and where: ``place`` is robot (x, y) m; vehicle (arc length m, signed curvature
-    1/m); thermostat (element index, set-point direction -1/0/+1); None when the outcome has no place."""
+    """What failed and where: ``place`` is robot (x, y) m; vehicle (lane departure's arc length m,
+    direction -1/0/+1, sharpest curvature 1/m, turn deg, entry index into ``ENTRIES``); thermostat
+    (element index, set-point direction -1/0/+1, step size degC, room model, duration band index);
+    None when the outcome has no place."""
 
     problem: str
     kind: str
@@ -50,11 +62,16 @@ class FailureSignature:
         if self.problem == "robot":
             return f"{self.kind} at ({self.place[0]:.1f}, {self.place[1]:.1f}) m"
         if self.problem == "vehicle":
-            bend = "left" if self.place[1] > 0 else "right" if self.place[1] < 0 else "straight"
-            radius = f"R {1 / abs(self.place[1]):.0f} m" if self.place[1] else "no curvature"
-            return f"{self.kind}, first lane touch at {self.place[0]:.0f} m along the road, {bend} bend ({radius})"
-        direction = {1: "step up", -1: "step down", 0: "no step"}[int(self.place[1])]
-        return f"{self.kind} in schedule element {int(self.place[0])} ({direction})"
+            arc, direction, kappa, turn, entry = self.place
+            if not direction:
+                return f"{self.kind} on a straight, first lane touch at {arc:.0f} m along the road"
+            bend = "left" if direction > 0 else "right"
+            return (f"{self.kind} in a {bend} bend (R {1 / kappa:.0f} m, turning {turn:.0f} deg) "
+                    f"{ENTRIES[int(entry)]}, first lane touch at {arc:.0f} m along the road")
+        index, direction, size, model, band = self.place
+        step = {1: f"a {size:g} degC step up", -1: f"a {size:g} degC step down", 0: "no step"}[int(direction)]
+        length = ("up to 2 h", "2-3 h", "over 3 h")[int(band)]
+        return f"{self.kind} in an element after {step}, room model {int(model)}, {length} (element {int(index)})"
 
 
 def signed_curvature(points: np.ndarray) -> np.ndarray:
@@ -71,19 +88,38 @@ def signed_curvature(points: np.ndarray) -> np.ndarray:
     return out
 
 
-def stretch_curvature(road: np.ndarray, arc: float, length: float) -> float:
-    """The signed curvature of largest magnitude over the ``length`` metres of road before ``arc``."""
+def failing_bend(road: np.ndarray, arc: float, lookback: float = BEND_LOOKBACK) -> tuple[float, float, float, int]:
+    """The bend that threw the car out at ``arc`` (m along ``road``): (direction -1/0/+1, sharpest
+    |curvature| 1/m, turn deg, entry index into ``ENTRIES``); direction 0 when no node of the
+    ``lookback`` metres before ``arc`` is sharper than ``BEND_CURVATURE`` (a departure on a straight)."""
     road = np.asarray(road, dtype=float)
     s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(road, axis=0).T))])
     kappa = signed_curvature(road)
-    inside = (s >= arc - max(length, 1e-9)) & (s <= arc)
-    if not inside.any():
-        inside[int(np.argmin(np.abs(s - arc)))] = True
-    k = kappa[inside]
-    return float(k[int(np.argmax(np.abs(k)))])
+    window = np.flatnonzero((s >= arc - lookback) & (s <= arc))
+    if not len(window):
+        window = np.array([int(np.argmin(np.abs(s - arc)))])
+    peak = int(window[np.argmax(np.abs(kappa[window]))])
+    if abs(kappa[peak]) < BEND_CURVATURE:
+        return 0, 0.0, 0.0, 0
+    sign = np.sign(kappa[peak])
+    inside = sign * kappa >= BEND_CURVATURE / 2  # the bend: the run of nodes turning this way around the peak
+    lo, hi = peak, peak
+    while lo > 0 and inside[lo - 1]:
+        lo -= 1
+    while hi < len(road) - 1 and inside[hi + 1]:
+        hi += 1
+    ds = np.gradient(s)
+    turn = float(np.degrees(np.sum(np.abs(kappa[lo:hi + 1]) * ds[lo:hi + 1])))
+    before = np.flatnonzero(np.abs(kappa[:lo]) >= BEND_CURVATURE)
+    lead = s[lo] - (s[before[-1]] if len(before) else 0.0)
+    if len(before) and lead < LONG_STRAIGHT / 2:
+        entry = 2 if np.sign(kappa[before[-1]]) != sign else 3
+    else:
+        entry = 0 if lead >= LONG_STRAIGHT else 1
+    return int(sign), float(abs(kappa[peak])), turn, entry
 
 
-def _vehicle_place(problem, scenario, outcome, radius: float) -> tuple[float, ...] | None:
+def _vehicle_place(problem, scenario, outcome) -> tuple[float, ...] | None:
     from .car import road_of
 
     m = outcome.metrics or {}
@@ -92,7 +128,7 @@ def _vehicle_place(problem, scenario, outcome, radius: float) -> tuple[float, ..
     if arc is None:
         return None
     road, _, _ = road_of(problem, scenario)
-    return (float(arc), stretch_curvature(road, float(arc), radius))
+    return (float(arc), *(float(v) for v in failing_bend(road, float(arc))))
 
 
 def _thermostat_place(problem, scenario, outcome) -> tuple[float, ...] | None:
@@ -100,11 +136,12 @@ def _thermostat_place(problem, scenario, outcome) -> tuple[float, ...] | None:
 
     if outcome.failure_point is None:
         return None
-    setpoints, durations, _ = schedule_of(problem, scenario)
+    setpoints, durations, models = schedule_of(problem, scenario)
     ends = np.cumsum(durations) / 60.0
     index = min(int(np.searchsorted(ends, float(outcome.failure_point[0]), side="right")), len(setpoints) - 1)
     step = setpoints[index] - setpoints[index - 1] if index > 0 else 0.0
-    return (float(index), float(np.sign(step)))
+    band = int(np.searchsorted(DURATION_BANDS, durations[index], side="left"))
+    return (float(index), float(np.sign(step)), abs(float(step)), float(models[index]), float(band))
 
 
 def signature(problem, scenario, outcome, radius: float | None = None) -> FailureSignature | None:
@@ -115,7 +152,7 @@ def signature(problem, scenario, outcome, radius: float | None = None) -> Failur
     if problem.name == "robot":
         place = None if outcome.failure_point is None else tuple(float(v) for v in outcome.failure_point[:2])
     elif problem.name == "vehicle":
-        place = _vehicle_place(problem, scenario, outcome, radius)
+        place = _vehicle_place(problem, scenario, outcome)
     elif problem.name == "thermostat":
         place = _thermostat_place(problem, scenario, outcome)
     else:
@@ -133,9 +170,32 @@ def same_failure(a: FailureSignature, b: FailureSignature, radius: float | None 
     radius = DEFAULT_RADIUS[a.problem] if radius is None else float(radius)
     if a.problem == "robot":
         return bool(np.hypot(a.place[0] - b.place[0], a.place[1] - b.place[1]) <= radius)
+    if len(a.place) != len(b.place):  # written by another version of this module
+        return False
     if a.problem == "vehicle":
-        return abs(a.place[0] - b.place[0]) <= radius and abs(a.place[1] - b.place[1]) <= curvature_tolerance
-    return abs(a.place[0] - b.place[0]) <= radius and a.place[1] == b.place[1]
+        (_, dir_a, k_a, turn_a, entry_a), (_, dir_b, k_b, turn_b, entry_b) = a.place, b.place
+        if dir_a != dir_b or entry_a != entry_b:
+            return False
+        return dir_a == 0 or (abs(k_a - k_b) <= curvature_tolerance and abs(turn_a - turn_b) <= radius)
+    (_, dir_a, size_a, model_a, band_a), (_, dir_b, size_b, model_b, band_b) = a.place, b.place
+    return dir_a == dir_b and model_a == model_b and band_a == band_b and abs(size_a - size_b) <= radius
+
+
+def predicted_signature(problem, scenario, metrics: dict[str, Any]) -> FailureSignature | None:
+    """The signature of the failure the surrogate predicts (its evaluation's ``metrics`` of this
+    scenario), or None when it predicts no place. The "certified" objectives say where: the vehicle's
+    brisk driver left the lane at ``failure_arc``; the thermostat's worst error fell at ``failure_hour``."""
+    from .outcome import Outcome
+
+    if problem.name == "vehicle" and np.isfinite(metrics.get("failure_arc", np.nan)):
+        guess = Outcome(objectives={}, failed=True, failure_kind="out_of_lane",
+                        metrics={"departure_arc_length": float(metrics["failure_arc"])})
+    elif problem.name == "thermostat" and np.isfinite(metrics.get("failure_hour", np.nan)):
+        guess = Outcome(objectives={}, failed=True, failure_kind="requirement",
+                        failure_point=(float(metrics["failure_hour"]), 0.0))
+    else:
+        return None
+    return signature(problem, scenario, guess)
 
 
 class DistinctFailures:
@@ -157,5 +217,5 @@ class DistinctFailures:
         return len(self.distinct)
 
 
-__all__ = ["CURVATURE_TOLERANCE", "DEFAULT_RADIUS", "DistinctFailures", "FailureSignature", "same_failure",
-           "signature", "signed_curvature", "stretch_curvature"]
+__all__ = ["BEND_CURVATURE", "CURVATURE_TOLERANCE", "DEFAULT_RADIUS", "DURATION_BANDS", "ENTRIES", "DistinctFailures",
+           "FailureSignature", "failing_bend", "predicted_signature", "same_failure", "signature", "signed_curvature"]

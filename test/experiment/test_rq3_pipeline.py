@@ -16,8 +16,9 @@ from ambiegen_ros.core.search import Search, SearchSettings
 from ambiegen_ros.experiment import CandidateQueue, ExperimentSpec, FullModelTally, full_model_run
 from ambiegen_ros.problems import get_problem
 from ambiegen_ros.sims.outcome import Outcome
-from ambiegen_ros.sims.signature import (DistinctFailures, FailureSignature, same_failure, signature,
-                                         stretch_curvature)
+from ambiegen_ros.core.scenario import Scenario
+from ambiegen_ros.sims.signature import (ENTRIES, DistinctFailures, FailureSignature, failing_bend, same_failure,
+                                         signature)
 
 
 class FakeClock:
@@ -228,47 +229,68 @@ def test_robot_signature_is_kind_and_place_within_the_radius():
     assert signature(robot, None, Outcome(objectives={}, failed=False, failure_kind="invalid_test")) is None
 
 
-def test_vehicle_signature_is_the_stretch_and_its_signed_curvature():
-    t = np.linspace(0, np.pi / 2, 40)
-    left = np.column_stack([20 * np.sin(t), 20 - 20 * np.cos(t)])  # a left bend of radius 20 m
-    straight = np.column_stack([np.linspace(-30, 0, 30)[:-1], np.zeros(29)])
-    road = np.concatenate([straight, left])
-    assert stretch_curvature(road, 45.0, 10.0) == pytest.approx(0.05, rel=0.05)
-    assert stretch_curvature(road * [1, -1], 45.0, 10.0) == pytest.approx(-0.05, rel=0.05)  # mirrored: right
-    assert abs(stretch_curvature(road, 15.0, 10.0)) < 1e-6  # on the straight
+def _bend_road(turn_deg, radius=20.0, lead=80.0, sign=1):
+    """A straight of ``lead`` m, then a bend of ``radius`` turning ``turn_deg`` (sign +1 left), then 40 m straight."""
+    straight = np.column_stack([np.arange(-lead, 0.0, 1.0), np.zeros(int(lead))])
+    t = np.linspace(0, np.radians(turn_deg), int(radius * np.radians(turn_deg)) + 2)
+    bend = np.column_stack([radius * np.sin(t), sign * (radius - radius * np.cos(t))])
+    end, heading = bend[-1], t[-1]
+    out = end + np.outer(np.arange(1.0, 41.0), [np.cos(heading), sign * np.sin(heading)])
+    return np.concatenate([straight, bend, out])
+
+
+def test_vehicle_signature_is_the_failing_bend_by_shape_wherever_it_lies():
+    road = _bend_road(90)
+    direction, kappa, turn, entry = failing_bend(road, 80.0 + 25.0)  # the car leaves the lane in the bend
+    assert direction == 1 and kappa == pytest.approx(0.05, rel=0.05) and turn == pytest.approx(90, abs=6)
+    assert ENTRIES[entry] == "after a long straight"
+    assert failing_bend(road * [1, -1], 105.0)[0] == -1  # mirrored: a right bend
+    assert failing_bend(road, 20.0)[0] == 0  # on the first straight: no bend
+    assert ENTRIES[failing_bend(_bend_road(90, lead=20), 45.0)[3]] == "after a short straight"
+    assert failing_bend(_bend_road(180), 140.0)[2] == pytest.approx(180, abs=8)
+
+    def sig(arc, direction, kappa, turn, entry):
+        return FailureSignature("vehicle", "out_of_lane", (arc, direction, kappa, turn, entry))
+
+    a = sig(100.0, 1, 0.05, 90.0, 0)
+    assert same_failure(a, sig(300.0, 1, 0.045, 110.0, 0))  # elsewhere on another road, the same bend
+    assert not same_failure(a, sig(100.0, -1, 0.05, 90.0, 0))  # left vs right
+    assert not same_failure(a, sig(100.0, 1, 0.05, 180.0, 0))  # a hairpin is not a right angle
+    assert not same_failure(a, sig(100.0, 1, 0.05, 90.0, 2))  # after an opposite bend
+    assert not same_failure(a, sig(100.0, 1, 0.03, 90.0, 0))  # R 20 m vs R 33 m
+    assert same_failure(a, sig(100.0, 1, 0.05, 180.0, 0), radius=100)
 
     vehicle = get_problem("vehicle")
     rng = np.random.default_rng(2)
     rows = vehicle.sample_rows(50, rng)
     row = rows[np.flatnonzero(vehicle.evaluate_rows(rows).valid)[0]]
     scenario = vehicle.codec.from_row(row)
-    a = signature(vehicle, scenario, _failed("out_of_lane", (0, 0), departure_arc_length=30.0, oob_arc_length=33.0))
-    b = signature(vehicle, scenario, _failed("out_of_lane", (0, 0), departure_arc_length=34.0, oob_arc_length=36.0))
-    assert a.place[0] == 30.0 and same_failure(a, b) == (abs(a.place[1] - b.place[1]) <= 0.01)
-    far = signature(vehicle, scenario, _failed("out_of_lane", (0, 0), departure_arc_length=55.0))
-    assert not same_failure(a, far)  # 25 m further along the road
-    assert not same_failure(FailureSignature("vehicle", "out_of_lane", (30.0, 0.05)),
-                            FailureSignature("vehicle", "out_of_lane", (32.0, -0.05)))  # left vs right bend
-    assert same_failure(FailureSignature("vehicle", "out_of_lane", (30.0, 0.05)),
-                        FailureSignature("vehicle", "out_of_lane", (38.0, 0.042)))  # R 20 m vs R 24 m
+    b = signature(vehicle, scenario, _failed("out_of_lane", (0, 0), departure_arc_length=30.0, oob_arc_length=33.0))
+    assert b.place[0] == 30.0 and len(b.place) == 5 and b.describe().startswith("out_of_lane")
+    assert not same_failure(b, FailureSignature("vehicle", "out_of_lane", (30.0, 0.05)))  # an old, shorter place
 
 
-def test_thermostat_signature_is_the_element_that_broke():
-    thermostat = get_problem("thermostat")
-    from ambiegen_ros.sims.room import schedule_of
+def test_thermostat_signature_is_the_kind_of_element_that_broke_not_its_index():
+    thermostat = get_problem("thermostat", {"profile": "refined"})
 
-    rows = thermostat.sample_rows(20, np.random.default_rng(6))
-    scenario = next(thermostat.codec.from_row(r) for r in rows if len(schedule_of(thermostat, thermostat.codec.from_row(r))[0]) >= 3)
-    setpoints, durations, _ = schedule_of(thermostat, scenario)
-    ends = np.cumsum(durations) / 60.0
-    in_first = signature(thermostat, scenario, _failed("requirement", (ends[0] * 0.25, 20.0)))
-    also_first = signature(thermostat, scenario, _failed("requirement", (ends[0] * 0.75, 20.0)))
-    in_second = signature(thermostat, scenario, _failed("requirement", ((ends[0] + ends[1]) / 2, 20.0)))
-    assert in_first.place[0] == 0 and in_second.place[0] == 1
-    assert in_second.place[1] == np.sign(setpoints[1] - setpoints[0])
-    assert same_failure(in_first, also_first) and not same_failure(in_first, in_second)
+    def day(elements):
+        return Scenario("thermostat", [{"temperature": t, "duration": d, "model": m} for t, d, m in elements])
+
+    a = day([(20, 120, 1), (24, 180, 3), (22, 240, 2)])
+    shifted = day([(21, 60, 4), (20, 120, 1), (23, 180, 3), (22, 240, 2)])  # one element later, a 3 degC step
+    hour = lambda start_min: _failed("requirement", ((start_min + 30) / 60.0, 20.0))  # noqa: E731
+    in_second = signature(thermostat, a, hour(120))
+    assert in_second.place == (1.0, 1.0, 4.0, 3.0, 1.0)  # element 1: +4 degC, model 3, 2-3 h
+    assert in_second.describe().startswith("requirement in an element after a 4 degC step up, room model 3")
+    same_kind = signature(thermostat, shifted, hour(180))
+    assert same_kind.place[0] == 2 and same_failure(in_second, same_kind)  # the index does not matter
+    assert not same_failure(in_second, same_kind, radius=0.5)  # 4 vs 3 degC with a 0.5 degC tolerance
+    in_third = signature(thermostat, a, hour(300))  # a step down into model 2, over 3 h
+    assert in_third.place[1:] == (-1.0, 2.0, 2.0, 2.0) and not same_failure(in_second, in_third)
+    first = signature(thermostat, a, hour(0))
+    assert first.place[1] == 0 and not same_failure(first, in_second)
     distinct = DistinctFailures()
-    assert [distinct.add(s) for s in (in_first, also_first, in_second)] == [True, False, True] and len(distinct) == 2
+    assert [distinct.add(s) for s in (in_second, same_kind, in_third)] == [True, False, True] and len(distinct) == 2
 
 
 def test_gallery_writes_a_picture_and_the_scenario_per_distinct_failure(tmp_path):
@@ -285,7 +307,7 @@ def test_gallery_writes_a_picture_and_the_scenario_per_distinct_failure(tmp_path
     rows = problem.sample_rows(2, np.random.default_rng(8))  # two distinct failures and a repeat
     examples = []
     for i, row in enumerate(rows):
-        sig = FailureSignature("thermostat", "requirement", (float(i), 1.0))
+        sig = FailureSignature("thermostat", "requirement", (float(i), 1.0, 2.0 + 3 * i, 1.0, 0.0))
         examples.append({"signature": sig.to_dict(), "describe": sig.describe(), "kind": "requirement",
                          "verdict": "FAIL(requirement)", "detail": "", "surrogate_f1": 2.0, "time_s": 30.0 * (i + 1),
                          "sim_seed": 11 + i, "scenario": problem.codec.from_row(row).to_dict()})

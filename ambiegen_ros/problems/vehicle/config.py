@@ -13,6 +13,7 @@ from ...core.problem import check_profile
 TYPE, LENGTH, ANGLE = 0, 1, 2  # attribute columns of G
 STRAIGHT, LEFT, RIGHT = 0, 1, 2  # codes of the "type" attribute
 FEET_PER_METRE = 3.280839895  # the replication code's sharpness threshold is 47 ft
+OBJECTIVES = ("max_deviation", "certified")  # F1: the paper's surrogate car; the two drivers (issue 26)
 REPLICATION_M_MAX = 50  # its generator has no limit; 1 road in ~200,000 has more elements (measured)
 
 
@@ -24,7 +25,8 @@ class VehicleConfig:
     """
 
     profile: str = "replication"  # replication | refined (see the module notes)
-    alpha: float | None = None  # MO constraint: "risky" when F1 > alpha [m]; replication 8, refined 10
+    alpha: float | None = None  # MO constraint: "risky" when F1 > alpha [m]; replication 8, refined 10, certified 2.5
+    objective: str = "max_deviation"  # F1: the paper's surrogate car | "certified" (``drivers``: two drivers, the rules)
     # map and road construction
     map_size: float = 200.0  # square map side [m]
     margin: float = 4.0  # refined: nodes this far inside the map; replication: road points in (margin, size - margin) [m]
@@ -73,8 +75,10 @@ class VehicleConfig:
     def __post_init__(self):
         check_profile(self.profile)
         replication = self.profile == "replication"
+        if self.objective not in OBJECTIVES:
+            raise ScenarioError("config.objective", f"unknown objective {self.objective!r}", "|".join(OBJECTIVES))
         defaults = {
-            "alpha": 8.0 if replication else 10.0,
+            "alpha": 2.5 if self.objective == "certified" else 8.0 if replication else 10.0,
             "start_heading_deg": -90.0 if replication else 90.0,
             "turn_radius": 30.0 if replication else 20.0,
             "min_radius": 47.0 / FEET_PER_METRE if replication else 14.33,

@@ -16,7 +16,7 @@ from .config import ANGLE, LENGTH, REPLICATION_M_MAX, STRAIGHT, TYPE, Road, Vehi
 from .replication_car import simulate_replication
 from .replication_road import _cross_section_inside, replication_nodes, replication_points, replication_sections
 from .road import build_spines, element_points, interpolate
-from .validity import _first_half, check_roads
+from .validity import _first_half, check_roads, competition_rules
 
 
 class VehicleProblem(Problem):
@@ -33,6 +33,14 @@ class VehicleProblem(Problem):
     f1_label: ClassVar[str] = "max deviation from lane centre [m]"
     paper_budget: ClassVar[Budget] = Budget(500, 500, 100000)
     Config: ClassVar[type] = VehicleConfig
+    # refined: its generator's roads keep the competition rules (with the rules as the replication
+    # surrogate's constraints, 9 of 2,000 sampled roads are valid); "certified": ``drivers``
+    certified_search: ClassVar[dict] = {"profile": "refined", "objective": "certified"}
+
+    def __init__(self, config=None, **overrides):
+        super().__init__(config, **overrides)
+        if self.config.objective == "certified":
+            self.f1_label = "certified-failure score: brisk driver's offset, less the cautious one's near miss [m]"
 
     def layout(self):
         """Same domains in both profiles (angle 5 is the filler of straights in the reference data,
@@ -156,12 +164,17 @@ class VehicleProblem(Problem):
                 nodes, n_nodes = replication_nodes(points, n_points, cfg)
             else:
                 _, _, nodes, n_nodes = self.roads(G[ok], lengths[ok], cfg)
-            v, why, length, _ = check_roads(nodes, n_nodes, cfg)
+            v, why, length, min_radius = check_roads(nodes, n_nodes, cfg)
             road_length[ok] = length
+            if cfg.objective == "certified":  # the reference's own rules decide validity (issue 26)
+                cut = used[ok] < lengths[ok] if self.replication else None
+                v, why = self._reference_rules(nodes, n_nodes, v, why, min_radius, cut)
             valid[ok] = v
             for i, reason in zip(ok, why):
                 reasons[i] = reason
-            if v.any():
+            if cfg.objective == "certified":
+                metrics.update(self._certified(nodes, n_nodes, v, ok, f1, P))
+            elif v.any():
                 road = np.repeat(np.arange(len(ok)), n_nodes)
                 sel = v[road]
                 if self.replication:
@@ -178,6 +191,41 @@ class VehicleProblem(Problem):
             reasons=reasons,
             metrics={"max_deviation": max_deviation, "road_length": road_length, **metrics},
         )
+
+    def _reference_rules(self, nodes, n_nodes, valid, reasons, min_radius, cut):
+        """The full model's static reference check (``sims.reference.vehicle.before``) on the roads the
+        problem's own rules pass: the competition rules on the road as driven; a replication road
+        that the builder cut at the map edge is never driven."""
+        cfg = self.config
+        valid, reasons = valid.copy(), list(reasons)
+        offs = np.concatenate([[0], np.cumsum(n_nodes)[:-1]])
+        for i in np.flatnonzero(valid):
+            if cut is not None and cut[i]:
+                valid[i], reasons[i] = False, "road leaves the map: the road builder cut it"
+                continue
+            road = nodes[offs[i]: offs[i] + n_nodes[i]]
+            ok, why = competition_rules(road, cfg.lane_width, cfg.map_size, cfg.margin, cfg.min_radius,
+                                        radius=float(min_radius[i]) if self.replication else None)
+            if not ok:
+                valid[i], reasons[i] = False, why
+        return valid, reasons
+
+    def _certified(self, nodes, n_nodes, valid, ok, f1, P) -> dict:
+        """F1 of the "certified" objective (``drivers``) for the valid roads, written into ``f1``;
+        returns the metrics: both drivers' largest offsets and where the brisk one left the lane."""
+        from .drivers import BRISK, CAUTIOUS, certified_score, drive_margins
+
+        brisk, cautious, arc = np.zeros(P), np.zeros(P), np.full(P, np.nan)
+        if valid.any():
+            road = np.repeat(np.arange(len(n_nodes)), n_nodes)
+            sel_nodes, sel_counts = nodes[valid[road]], np.asarray(n_nodes)[valid]
+            lane = self.config.lane_width
+            b, a = drive_margins(sel_nodes, sel_counts, lane, BRISK)
+            c, _ = drive_margins(sel_nodes, sel_counts, lane, CAUTIOUS)
+            idx = ok[valid]
+            brisk[idx], cautious[idx], arc[idx] = b, c, a
+            f1[idx] = np.maximum(certified_score(b, c), 0.0)
+        return {"brisk_offset": brisk, "cautious_offset": cautious, "failure_arc": arc}
 
     def environment(self, scenario: Scenario, start_offset: float = 0.0) -> Road:
         """Build, check and drive one road (even if invalid: ``valid``/``reason`` say so).
