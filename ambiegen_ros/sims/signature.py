@@ -8,13 +8,14 @@ signature is ``(problem, kind, place)``; two signatures are the *same failure* w
   ``radius`` apart (default 2 m). A failure without a point only matches one without a point.
 * **vehicle**: the same kind and the same *failing bend*, by its shape, wherever it lies on its
   road (``failing_bend``): the bend of largest curvature in the ``BEND_LOOKBACK`` metres of road
-  before the place where the car left the lane (``metrics["departure_arc_length"]``, the first lane
-  touch; else ``oob_arc_length``). Its shape is its direction (a left and a right bend are never
-  the same), its sharpest curvature (within ``curvature_tolerance``, default 0.01 1/m: R 20 m and
-  R 25 m are the same), how far it turns (within ``radius`` degrees, default 30) and how the car
-  came into it (``ENTRIES``: after a long straight, a short one, an opposite bend, a bend the same
-  way). Where along its road the bend lies does not matter: two roads are compared by shape, as
-  the SBFT tool competition compares failing road segments.
+  before the place where the car left the lane (``metrics["oob_arc_length"]``, where the oracle
+  fired; else ``departure_arc_length``, its first lane touch, which can lie bends earlier). Its
+  shape is its direction (a left and a right bend are never the same), its sharpest curvature
+  (within ``curvature_tolerance``, default 0.01 1/m: R 20 m and R 25 m are the same), how far it
+  turns (within ``radius`` degrees, default 30) and how the car came into it (``ENTRIES``: after a
+  long straight, a short one, an opposite bend, a bend the same way). Where along its road the
+  bend lies does not matter: two roads are compared by shape, as the SBFT tool competition
+  compares failing road segments.
 * **thermostat**: the same kind and the same *kind of schedule element* where the worst error
   fell (``failure_point[0]``, hours), wherever it lies in its day: the set-point step into it
   (direction up/down/none, and its size within ``radius`` degC, default 1), its room model and its
@@ -35,14 +36,14 @@ DEFAULT_RADIUS = {"robot": 2.0, "vehicle": 30.0, "thermostat": 1.0}
 DURATION_BANDS = (120.0, 180.0)  # min: an element up to 2 h, up to 3 h, or longer (thermostat)
 CURVATURE_TOLERANCE = 0.01  # 1/m (vehicle)
 BEND_CURVATURE = 0.01  # 1/m: sharper than R 100 m is a bend (vehicle)
-BEND_LOOKBACK = 40.0  # m of road before the lane departure searched for the bend that threw the car out
+BEND_LOOKBACK = 40.0  # m of road before the place the car left the lane searched for the bend that threw it out
 LONG_STRAIGHT = 60.0  # m: a brisk car reaches most of its 70 km/h on a straight this long
 ENTRIES = ("after a long straight", "after a short straight", "after an opposite bend", "after a bend the same way")
 
 
 @dataclass(frozen=True)
 class FailureSignature:
-    """What failed and where: ``place`` is robot (x, y) m; vehicle (lane departure's arc length m,
+    """What failed and where: ``place`` is robot (x, y) m; vehicle (arc length m where the car left the lane,
     direction -1/0/+1, sharpest curvature 1/m, turn deg, entry index into ``ENTRIES``); thermostat
     (element index, set-point direction -1/0/+1, step size degC, room model, duration band index);
     None when the outcome has no place."""
@@ -64,10 +65,10 @@ class FailureSignature:
         if self.problem == "vehicle":
             arc, direction, kappa, turn, entry = self.place
             if not direction:
-                return f"{self.kind} on a straight, first lane touch at {arc:.0f} m along the road"
+                return f"{self.kind} on a straight, out of the lane at {arc:.0f} m along the road"
             bend = "left" if direction > 0 else "right"
             return (f"{self.kind} in a {bend} bend (R {1 / kappa:.0f} m, turning {turn:.0f} deg) "
-                    f"{ENTRIES[int(entry)]}, first lane touch at {arc:.0f} m along the road")
+                    f"{ENTRIES[int(entry)]}, out of the lane at {arc:.0f} m along the road")
         index, direction, size, model, band = self.place
         step = {1: f"a {size:g} degC step up", -1: f"a {size:g} degC step down", 0: "no step"}[int(direction)]
         length = ("up to 2 h", "2-3 h", "over 3 h")[int(band)]
@@ -123,8 +124,8 @@ def _vehicle_place(problem, scenario, outcome) -> tuple[float, ...] | None:
     from .car import road_of
 
     m = outcome.metrics or {}
-    arc = m.get("departure_arc_length")
-    arc = m.get("oob_arc_length") if arc is None else arc
+    arc = m.get("oob_arc_length")
+    arc = m.get("departure_arc_length") if arc is None else arc
     if arc is None:
         return None
     road, _, _ = road_of(problem, scenario)
@@ -189,7 +190,7 @@ def predicted_signature(problem, scenario, metrics: dict[str, Any]) -> FailureSi
 
     if problem.name == "vehicle" and np.isfinite(metrics.get("failure_arc", np.nan)):
         guess = Outcome(objectives={}, failed=True, failure_kind="out_of_lane",
-                        metrics={"departure_arc_length": float(metrics["failure_arc"])})
+                        metrics={"oob_arc_length": float(metrics["failure_arc"])})
     elif problem.name == "thermostat" and np.isfinite(metrics.get("failure_hour", np.nan)):
         guess = Outcome(objectives={}, failed=True, failure_kind="requirement",
                         failure_point=(float(metrics["failure_hour"]), 0.0))

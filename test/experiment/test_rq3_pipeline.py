@@ -266,7 +266,7 @@ def test_vehicle_signature_is_the_failing_bend_by_shape_wherever_it_lies():
     row = rows[np.flatnonzero(vehicle.evaluate_rows(rows).valid)[0]]
     scenario = vehicle.codec.from_row(row)
     b = signature(vehicle, scenario, _failed("out_of_lane", (0, 0), departure_arc_length=30.0, oob_arc_length=33.0))
-    assert b.place[0] == 30.0 and len(b.place) == 5 and b.describe().startswith("out_of_lane")
+    assert b.place[0] == 33.0 and len(b.place) == 5 and b.describe().startswith("out_of_lane")  # where it left
     assert not same_failure(b, FailureSignature("vehicle", "out_of_lane", (30.0, 0.05)))  # an old, shorter place
 
 
