@@ -23,6 +23,10 @@ of measured times:
   simulator never idles while the search thinks and the search can only add to what random search
   would have found (``executor_idle`` "random", the default); with "wait" its clock jumps to the
   moment the search produces the next candidate (``waited_s``).
+* **Novelty** (a search's executor only; ``novelty`` in the identity, ``--no-novelty``): when the
+  surrogate says where it predicts a failure (``PREDICTED_PLACE``, the certified objectives), a
+  candidate whose predicted failure has the same signature as a failure certified by then is
+  skipped (``predicted_repeats``). Random search never skips one: it stays plain sampling.
 * **The budget** (``--time-budget``) is on the executors' clocks: an execution that would end after
   it does not count (``overrun_discarded``). The search runs at least until it has used the
   problem's RQ3 round budget of evaluations (``spec.RQ3_ROUNDS``, the paper's evaluations per
