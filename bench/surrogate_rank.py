@@ -27,40 +27,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import write_result  # noqa: E402
 
-from ambiegen_ros.run_config import load_config_file, _build_problem  # noqa: E402
+from ambiegen_ros.core.config import load_config_file  # noqa: E402
+from ambiegen_ros.core.stats import roc_auc, spearman  # noqa: E402
+from ambiegen_ros.problems import get_problem  # noqa: E402
+from ambiegen_ros.sims.options import parse_options  # noqa: E402
 from ambiegen_ros.sims.full_model import full_model_executor, scenario_seed  # noqa: E402
-
-
-def average_ranks(x) -> np.ndarray:
-    """1-based ranks with ties given their mean rank (scipy's ``rankdata``; numpy only, as scipy is optional)."""
-    x = np.asarray(x, dtype=float)
-    order = np.argsort(x, kind="mergesort")
-    ranks = np.empty(len(x))
-    sx = x[order]
-    start = 0
-    for end in range(1, len(x) + 1):
-        if end == len(x) or sx[end] != sx[start]:
-            ranks[order[start:end]] = 0.5 * (start + end - 1) + 1.0
-            start = end
-    return ranks
-
-
-def spearman(x, y) -> float:
-    """Spearman's rho (Pearson on average ranks); nan when either side is constant."""
-    rx, ry = average_ranks(x), average_ranks(y)
-    if rx.std() == 0 or ry.std() == 0:
-        return float("nan")
-    return float(np.corrcoef(rx, ry)[0, 1])
-
-
-def roc_auc(score, label) -> float:
-    """P(score of a random positive > that of a random negative), ties half (Mann-Whitney U / n1 n0)."""
-    label = np.asarray(label, dtype=bool)
-    n1, n0 = int(label.sum()), int((~label).sum())
-    if n1 == 0 or n0 == 0:
-        return float("nan")
-    r = average_ranks(score)
-    return float((r[label].sum() - n1 * (n1 + 1) / 2.0) / (n1 * n0))
 
 
 def valid_sample(problem, n: int, rng: np.random.Generator, batch: int = 256):
@@ -81,18 +52,6 @@ def valid_sample(problem, n: int, rng: np.random.Generator, batch: int = 256):
     return np.array(rows), np.array(f1), {k: np.array(v) for k, v in metrics.items()}, drawn
 
 
-def parse_sets(items) -> dict:
-    """``key=value`` pairs, values read as JSON when they parse (numbers, true/false), else text."""
-    out = {}
-    for item in items or ():
-        key, _, value = item.partition("=")
-        try:
-            out[key] = json.loads(value)
-        except json.JSONDecodeError:
-            out[key] = value
-    return out
-
-
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--problem", required=True)
@@ -107,8 +66,10 @@ def main(argv=None) -> dict:
     file_cfg = dict(load_config_file(args.config)) if args.config else {}
     if file_cfg.get("problem") not in (None, args.problem):
         raise SystemExit(f"{args.config} is a config of {file_cfg['problem']!r}")
-    file_cfg["problem_config"] = {**(file_cfg.get("problem_config") or {}), **parse_sets(args.set)}
-    problem = _build_problem(args.problem, file_cfg, args.profile)
+    problem_config = {**(file_cfg.get("problem_config") or {}), **parse_options(args.set)}
+    if args.profile:
+        problem_config["profile"] = args.profile
+    problem = get_problem(args.problem, problem_config)
     cfg = problem.config
     tag = args.tag or "_".join(str(v) for v in (getattr(cfg, "profile", None), getattr(cfg, "objective", None)) if v)
 
@@ -130,13 +91,13 @@ def main(argv=None) -> dict:
     top = np.argsort(-f1, kind="stable")[: max(1, math.ceil(0.1 * len(X)))]
     risky = f1 > problem.alpha
     figures = {
-        "problem": problem.name, "tag": tag, "config_file": args.config, "overrides": parse_sets(args.set),
+        "problem": problem.name, "tag": tag, "config_file": args.config, "overrides": parse_options(args.set),
         "problem_config": {k: v for k, v in dataclasses.asdict(cfg).items()
                            if isinstance(v, (int, float, str, bool, type(None)))} if dataclasses.is_dataclass(cfg) else None,
         "n": int(len(X)), "seed": args.seed, "drawn": drawn, "alpha": problem.alpha,
-        "spearman_f1_certified": spearman(f1, failed),
+        "spearman_f1_certified": spearman(f1, failed)[0],
         "roc_auc_f1_certified": roc_auc(f1, failed),
-        "spearman_f1_invalid_test": spearman(f1, invalid),
+        "spearman_f1_invalid_test": spearman(f1, invalid)[0],
         "certified_failures": int(failed.sum()), "invalid_tests": int(invalid.sum()),
         "rejected": int(rejected.sum()), "passes": int((~failed & ~invalid & ~rejected).sum()),
         "certified_rate": float(failed.mean()),

@@ -80,6 +80,14 @@ def compare(metric: str, name_a: str, a: Sequence[float], name_b: str, b: Sequen
     }
 
 
+def roc_auc(score: Sequence[float], label: Sequence[bool]) -> float:
+    """P(the score of a random positive > that of a random negative), ties counted half: how well a
+    score ranks a 0/1 verdict, (Cliff's delta of positives against negatives + 1) / 2. NaN when a
+    class is empty."""
+    score, label = np.asarray(score, dtype=float), np.asarray(label, dtype=bool)
+    return (cliffs_delta(score[label], score[~label]) + 1.0) / 2.0
+
+
 def spearman(x: Sequence[float], y: Sequence[float]) -> tuple[float, float, int]:
     """(rho, p-value, n) over the pairs where both are finite; NaN when either side is constant."""
     from scipy.stats import spearmanr
@@ -94,4 +102,4 @@ def spearman(x: Sequence[float], y: Sequence[float]) -> tuple[float, float, int]
     return float(res[0]), float(res[1]), n
 
 
-__all__ = ["MAGNITUDES", "cliffs_delta", "compare", "magnitude", "mann_whitney", "smallest_p", "spearman"]
+__all__ = ["MAGNITUDES", "cliffs_delta", "compare", "magnitude", "mann_whitney", "roc_auc", "smallest_p", "spearman"]

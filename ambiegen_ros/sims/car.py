@@ -131,33 +131,16 @@ class Lane:
 
 def right_lane(road: np.ndarray, lane_width: float) -> Lane:
     """Offset the road centre line half a lane (and a lane) to the right; build the lane polygon."""
-    from ..problems.vehicle.validity import left_normals  # here: the robot's and room's runs skip the vehicle package
+    # here, not at the top: the robot's and room's runs skip the vehicle package
+    from ..problems.vehicle.validity import left_normals, right_lane_lines
 
     road = np.asarray(road, dtype=float)
-    left = left_normals(road)
-    centre = road - left * (lane_width / 2)
-    edge = road - left * lane_width
+    centre, s, road_s, curvature = right_lane_lines(road, lane_width)
+    edge = road - left_normals(road) * lane_width
     quads = np.stack([road[:-1], road[1:], edge[1:], edge[:-1]], axis=1)
     polygon = shapely.union_all(shapely.polygons(quads))
     shapely.prepare(polygon)
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(centre, axis=0).T))])
-    road_s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(road, axis=0).T))])
-    return Lane(road, centre, s, road_s, _curvature(centre), polygon, lane_width)
-
-
-def _curvature(points: np.ndarray, stride: int = 2) -> np.ndarray:
-    """|curvature| at each node from the circle through (p_i-k, p_i, p_i+k) (ends copy the nearest)."""
-    n = len(points)
-    out = np.zeros(n)
-    if n < 2 * stride + 1:
-        return out
-    a, b, c = points[:-2 * stride], points[stride:-stride], points[2 * stride:]
-    cross = np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
-    prod = np.hypot(*(b - a).T) * np.hypot(*(c - b).T) * np.hypot(*(c - a).T)
-    out[stride:-stride] = 2 * cross / np.maximum(prod, 1e-12)
-    out[:stride] = out[stride]
-    out[-stride:] = out[-stride - 1]
-    return out
+    return Lane(road, centre, s, road_s, curvature, polygon, lane_width)
 
 
 def box_corners(x, y, yaw, length: float, width: float) -> np.ndarray:

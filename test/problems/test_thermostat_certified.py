@@ -13,7 +13,7 @@ from ambiegen_ros.problems.thermostat import ThermostatConfig, ThermostatProblem
 from ambiegen_ros.problems.thermostat_model import simulate_room
 from ambiegen_ros.sims import room
 from ambiegen_ros.sims.full_model import full_model_executor
-from bench.surrogate_rank import average_ranks, roc_auc, spearman
+from ambiegen_ros.core.stats import roc_auc, spearman
 
 # a descending staircase: the on/off thermostat (60 s period, 0.1 degC hysteresis) stays OFF and the
 # full model's room cannot cool more than k_off1 below the temperature of its last switch; the ideal
@@ -126,18 +126,14 @@ def test_bad_settings_are_refused(bad):
         ThermostatConfig(objective="certified", **bad)
 
 
-# --- bench/surrogate_rank.py's statistics ------------------------------------------------------------
-def test_average_ranks_share_ties():
-    np.testing.assert_allclose(average_ranks([3.0, 1.0, 3.0, 2.0]), [3.5, 1.0, 3.5, 2.0])
-
-
+# --- the rank statistics bench/surrogate_rank.py reports (core.stats) -----------------------------------
 def test_roc_auc_and_spearman():
     assert roc_auc([0.1, 0.2, 0.8, 0.9], [0, 0, 1, 1]) == 1.0
     assert roc_auc([0.9, 0.8, 0.2, 0.1], [0, 0, 1, 1]) == 0.0
     assert roc_auc([0.5, 0.5, 0.5, 0.5], [0, 1, 0, 1]) == 0.5
     assert np.isnan(roc_auc([1.0, 2.0], [1, 1]))
-    assert spearman([1, 2, 3, 4], [10, 20, 30, 40]) == pytest.approx(1.0)
+    assert spearman([1, 2, 3, 4], [10, 20, 30, 40])[0] == pytest.approx(1.0)
     scipy_stats = pytest.importorskip("scipy.stats")
     rng = np.random.default_rng(0)
     x, y = rng.integers(0, 5, 50), rng.integers(0, 2, 50)
-    assert spearman(x, y) == pytest.approx(scipy_stats.spearmanr(x, y)[0])
+    assert spearman(x, y)[0] == pytest.approx(scipy_stats.spearmanr(x, y)[0])

@@ -23,6 +23,8 @@ so F1 > OUT means "the surrogate predicts a certified failure". The arc length a
 the brisk driver first left the lane (else where it came closest) says where it failed: the
 executor uses it to prefer failures unlike the ones found (``sims.signature``).
 
+The lane is the full model's own (``validity.right_lane_lines``, built once per road for both
+drivers); ``_project`` and ``_point_at`` are scalar twins of ``sims.car``'s, for the compiled loop.
 The car's numbers are the full model's defaults (``sims.car.CarSimConfig``; a test keeps them
 equal). The loop runs compiled by numba when it loads, else as plain Python (same results).
 """
@@ -32,6 +34,8 @@ import math
 from dataclasses import astuple, dataclass
 
 import numpy as np
+
+from .validity import right_lane_lines
 
 OUT_OFFSET = 2.0 + (0.85 - 0.5) * 1.8  # lane half-width + 35 % of the box's width [m]
 CAP = 0.5  # [m]
@@ -63,23 +67,6 @@ class Driver:
 
 BRISK = Driver()
 CAUTIOUS = Driver(corner_lat_accel=4.0, preview_time=1.5)
-
-
-def _curvature(cx, cy, stride):
-    """|curvature| per node from the circle through (p_i-k, p_i, p_i+k), ends copied (``sims.car``'s)."""
-    n = len(cx)
-    out = np.zeros(n)
-    if n < 2 * stride + 1:
-        return out
-    for i in range(stride, n - stride):
-        ax, ay, bx, by, qx, qy = cx[i - stride], cy[i - stride], cx[i], cy[i], cx[i + stride], cy[i + stride]
-        cross = abs((bx - ax) * (qy - ay) - (by - ay) * (qx - ax))
-        prod = math.hypot(bx - ax, by - ay) * math.hypot(qx - bx, qy - by) * math.hypot(qx - ax, qy - ay)
-        out[i] = 2.0 * cross / max(prod, 1e-12)
-    for i in range(stride):
-        out[i] = out[stride]
-        out[n - 1 - i] = out[n - stride - 1]
-    return out
 
 
 def _project(cx, cy, s, x, y, i):
@@ -172,27 +159,15 @@ def _drive_one(cx, cy, s, road_s, kappa, prm, out_offset):
     return worst, (fail_arc if fail_arc >= 0 else worst_arc)
 
 
-def _drive_all(nodes, offsets, counts, lane_width, prm, out_offset, worst, arc):
-    """Every road of a flat node array (right lane built per road), one after another."""
+def _drive_all(cx, cy, s, road_s, kappa, offsets, counts, prm, out_offset, worst, arc):
+    """Every road's right lane of flat arrays (``offsets``/``counts`` per road), one after another."""
     for r in range(len(counts)):
         o, m = offsets[r], counts[r]
-        px, py = nodes[o:o + m, 0], nodes[o:o + m, 1]
-        # left normals by central differences (np.gradient), as ``validity.left_normals``
-        cx, cy = np.empty(m), np.empty(m)
-        for i in range(m):
-            a, b = max(i - 1, 0), min(i + 1, m - 1)
-            tx, ty = (px[b] - px[a]) / (b - a), (py[b] - py[a]) / (b - a)
-            norm = max(math.hypot(tx, ty), 1e-12)
-            cx[i] = px[i] - (-ty / norm) * lane_width / 2
-            cy[i] = py[i] - (tx / norm) * lane_width / 2
-        s, road_s = np.zeros(m), np.zeros(m)
-        for i in range(1, m):
-            s[i] = s[i - 1] + math.hypot(cx[i] - cx[i - 1], cy[i] - cy[i - 1])
-            road_s[i] = road_s[i - 1] + math.hypot(px[i] - px[i - 1], py[i] - py[i - 1])
         if m < 5:
             worst[r], arc[r] = 0.0, 0.0
             continue
-        worst[r], arc[r] = _drive_one(cx, cy, s, road_s, _curvature(cx, cy, 2), prm, out_offset)
+        worst[r], arc[r] = _drive_one(cx[o:o + m], cy[o:o + m], s[o:o + m], road_s[o:o + m], kappa[o:o + m], prm,
+                                      out_offset)
 
 
 _COMPILED: list = []
@@ -209,22 +184,32 @@ def _kernel():
         else:
             jit = numba.njit(cache=True, error_model="numpy")
             g = globals()
-            for name in ("_curvature", "_project", "_point_at", "_drive_one"):
+            for name in ("_project", "_point_at", "_drive_one"):
                 g[name] = jit(g[name])
             _COMPILED.append(jit(_drive_all))
     return _COMPILED[0]
 
 
-def drive_margins(nodes: np.ndarray, counts: np.ndarray, lane_width: float, driver: Driver = BRISK
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Per road of a flat ``nodes`` array (``counts`` nodes each): the largest offset of the car box's
-    centre from the right lane's centre [m] and where along the road the car first left the lane [m]."""
+def right_lanes(nodes: np.ndarray, counts: np.ndarray, lane_width: float) -> tuple[np.ndarray, ...]:
+    """Every road's right lane as the full model builds it (``validity.right_lane_lines``), as flat
+    arrays (centre x, centre y, lane arc, road arc, |curvature|) beside per-road offsets and counts."""
     counts = np.asarray(counts, dtype=np.int64)
     offsets = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
-    worst, arc = np.zeros(len(counts)), np.zeros(len(counts))
-    prm = np.array(astuple(driver), dtype=float)
-    _kernel()(np.ascontiguousarray(nodes, dtype=float), offsets, counts, float(lane_width), prm, OUT_OFFSET,
-              worst, arc)
+    lanes = [right_lane_lines(nodes[o:o + m], lane_width) for o, m in zip(offsets, counts)]
+    centre = np.concatenate([lane[0] for lane in lanes]) if lanes else np.zeros((0, 2))
+    s, road_s, kappa = (np.concatenate([lane[k] for lane in lanes]) if lanes else np.zeros(0) for k in (1, 2, 3))
+    return (np.ascontiguousarray(centre[:, 0]), np.ascontiguousarray(centre[:, 1]), s, road_s, kappa,
+            offsets, counts)
+
+
+def drive_margins(nodes: np.ndarray, counts: np.ndarray, lane_width: float, driver: Driver = BRISK,
+                  lanes: tuple[np.ndarray, ...] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Per road of a flat ``nodes`` array (``counts`` nodes each): the largest offset of the car box's
+    centre from the right lane's centre [m] and where along the road the car first left the lane [m].
+    ``lanes``: ``right_lanes`` of the same roads, when the caller drives them more than once."""
+    lanes = right_lanes(nodes, counts, lane_width) if lanes is None else lanes
+    worst, arc = np.zeros(len(lanes[-1])), np.zeros(len(lanes[-1]))
+    _kernel()(*lanes, np.array(astuple(driver), dtype=float), OUT_OFFSET, worst, arc)
     return worst, arc
 
 
@@ -233,4 +218,4 @@ def certified_score(brisk: np.ndarray, cautious: np.ndarray) -> np.ndarray:
     return np.minimum(brisk, OUT_OFFSET + CAP) - np.maximum(0.0, cautious - (OUT_OFFSET - CAP))
 
 
-__all__ = ["BRISK", "CAP", "CAUTIOUS", "Driver", "OUT_OFFSET", "certified_score", "drive_margins"]
+__all__ = ["BRISK", "CAP", "CAUTIOUS", "Driver", "OUT_OFFSET", "certified_score", "drive_margins", "right_lanes"]

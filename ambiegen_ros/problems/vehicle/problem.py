@@ -213,15 +213,16 @@ class VehicleProblem(Problem):
     def _certified(self, nodes, n_nodes, valid, ok, f1, P) -> dict:
         """F1 of the "certified" objective (``drivers``) for the valid roads, written into ``f1``;
         returns the metrics: both drivers' largest offsets and where the brisk one left the lane."""
-        from .drivers import BRISK, CAUTIOUS, certified_score, drive_margins
+        from .drivers import BRISK, CAUTIOUS, certified_score, drive_margins, right_lanes
 
         brisk, cautious, arc = np.zeros(P), np.zeros(P), np.full(P, np.nan)
         if valid.any():
             road = np.repeat(np.arange(len(n_nodes)), n_nodes)
             sel_nodes, sel_counts = nodes[valid[road]], np.asarray(n_nodes)[valid]
             lane = self.config.lane_width
-            b, a = drive_margins(sel_nodes, sel_counts, lane, BRISK)
-            c, _ = drive_margins(sel_nodes, sel_counts, lane, CAUTIOUS)
+            lanes = right_lanes(sel_nodes, sel_counts, lane)  # one lane per road for both drivers
+            b, a = drive_margins(sel_nodes, sel_counts, lane, BRISK, lanes)
+            c, _ = drive_margins(sel_nodes, sel_counts, lane, CAUTIOUS, lanes)
             idx = ok[valid]
             brisk[idx], cautious[idx], arc[idx] = b, c, a
             f1[idx] = np.maximum(certified_score(b, c), 0.0)

@@ -184,6 +184,32 @@ def left_normals(road: np.ndarray) -> np.ndarray:
     return np.column_stack([-tangent[:, 1], tangent[:, 0]])
 
 
+def abs_curvature(points: np.ndarray, stride: int = 2) -> np.ndarray:
+    """|curvature| at each node from the circle through (p_i-k, p_i, p_i+k) (ends copy the nearest)."""
+    n = len(points)
+    out = np.zeros(n)
+    if n < 2 * stride + 1:
+        return out
+    a, b, c = points[:-2 * stride], points[stride:-stride], points[2 * stride:]
+    cross = np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+    prod = np.hypot(*(b - a).T) * np.hypot(*(c - b).T) * np.hypot(*(c - a).T)
+    out[stride:-stride] = 2 * cross / np.maximum(prod, 1e-12)
+    out[:stride] = out[stride]
+    out[-stride:] = out[-stride - 1]
+    return out
+
+
+def right_lane_lines(road: np.ndarray, lane_width: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The right lane a car drives on a road centre line: its centre (offset half a lane to the
+    right), arc length along it, arc length along the road, |curvature| of its centre. The full
+    model (``sims.car.right_lane``) and the two-driver surrogate (``drivers``) share it."""
+    road = np.asarray(road, dtype=float)
+    centre = road - left_normals(road) * (lane_width / 2)
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(centre, axis=0).T))])
+    road_s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(road, axis=0).T))])
+    return centre, s, road_s, abs_curvature(centre)
+
+
 def lane_edges(road: np.ndarray, lane_width: float) -> tuple[np.ndarray, np.ndarray]:
     """Left and right edges of a two-lane road: the centre line offset ``lane_width`` either side."""
     left = left_normals(road)
