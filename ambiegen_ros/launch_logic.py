@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .nav2_params import OVERLAY_FILE, for_namespace, merged_params, scale_nav2_rates, top_speed, write_params
+
 
 SIM_EXECUTABLES = {"robot": "robot_sim", "vehicle": "car_sim", "thermostat": "thermostat_sim"}
 
@@ -62,6 +64,8 @@ class NodeSpec:
     parameters: dict[str, Any]
     package: str = "ambiegen_ros"
     params_files: list[str] = field(default_factory=list)  # ROS parameter files, before ``parameters``
+    namespace: str = ""
+    remappings: list[tuple[str, str]] = field(default_factory=list)
 
 
 @dataclass
@@ -75,9 +79,13 @@ class CampaignPlan:
     mcap: Path
     keep_workers: bool
     nodes: list[NodeSpec]
+    includes: list[Any] = field(default_factory=list)  # other packages' launch files (IncludeSpec)
+    notes: list[str] = field(default_factory=list)  # said when the launch starts
+    nav2_params: Path | None = None  # the Nav2 params file written for the run
 
     def node(self, name: str) -> NodeSpec:
-        return next(n for n in self.nodes if n.name == name)
+        """The node called ``name``, or ``<namespace>/<name>``."""
+        return next(n for n in self.nodes if name in (n.name, f"{n.namespace}/{n.name}"))
 
     def after_generator_exit(self) -> str:
         """``shutdown``: the campaign is over, every node gets SIGINT (the recorder closes the MCAP);
@@ -132,12 +140,22 @@ def plan_campaign(values: dict[str, str], share_dir: str, seed: int | None = Non
 
 
 # --- Nav2 as the system under test (launch/nav2_campaign.launch.py) --------------------------------
+NAV2_MODES = ("ours", "bringup", "external")
 NAV2_LAUNCH_ARGUMENTS: dict[str, tuple[str, str]] = {
     **{k: v for k, v in LAUNCH_ARGUMENTS.items() if k not in ("problem", "workers", "keep_workers")},
-    "params_file": ("", "Nav2 parameters ('' = the package's config/nav2/pioneer_navfn_dwb.yaml)"),
+    "nav2": ("ours", "ours: start the minimum Nav2 here (controller, planner, behaviours, BT navigator) | "
+                     "bringup: include nav2_bringup's navigation_launch.py with the merged params | "
+                     "external: start only our side; you start Nav2 yourself (see docs/external_sut.md)"),
+    "params_file": ("", "your Nav2 params ('' = the package's config/nav2/pioneer_navfn_dwb.yaml)"),
+    "params_overlay": ("", "YAML merged onto params_file ('' = the package's config/nav2/ambiegen_overlay.yaml "
+                           "for a params_file of yours, none for the package's own; 'none' = none)"),
     "time_scale": ("1.0", "simulated seconds per wall second; Nav2's rates in the params file are multiplied by it"),
     "map_upsample": ("5", "each 1 m map cell goes to Nav2 as k x k cells (5 = 0.2 m)"),
-    "result_timeout": ("0.0", "seconds the generator waits for a scenario (0 = 2 x 300 s / time_scale + 60)"),
+    "early_verdicts": ("false", "true: the paper's stall and loitering monitors decide and cancel Nav2; false: Nav2's "
+                                "own result decides (succeeded / aborted), besides collisions and the time limit"),
+    "result_timeout": ("0.0", "seconds the generator waits for a scenario (0 = twice the adapter's longest run)"),
+    "stacks": ("1", "K stacks of world + Nav2 + adapter fed by one generator, stack i in namespace /stack<i> "
+                    "(K > 1: nav2:=ours)"),
 }
 NAV2_NODES = (  # (node name, package, executable): the minimum Nav2 for navigate_to_pose with NavFn + DWB
     ("controller_server", "nav2_controller", "controller_server"),
@@ -148,68 +166,121 @@ NAV2_NODES = (  # (node name, package, executable): the minimum Nav2 for navigat
 )
 NAV2_TOPICS = ("/map", "/initialpose", "/scan", "/odom", "/tf", "/tf_static", "/cmd_vel", "/plan", "/collision")
 """What a Nav2 campaign records besides the AmbieGen topics: a robot bag (types and QoS: the publishers')."""
-NAV2_RATES = {  # parameter name -> "rate" (multiplied by k) | "period" (divided by k)
-    "controller_frequency": "rate", "expected_planner_frequency": "rate", "update_frequency": "rate",
-    "publish_frequency": "rate", "cycle_frequency": "rate", "bt_loop_duration": "period",
-}
+EXTERNAL_START_TIMEOUT = 600.0  # s the adapter waits for a Nav2 the user starts by hand
 
 
-def scale_nav2_rates(params: Any, k: float) -> Any:
-    """A Nav2 parameter tree with every loop rate multiplied by ``k`` (and loop periods divided):
-    Jazzy's controller, planner, costmap and behaviour-tree loops run on wall-clock rates, so a
-    world ``k`` times faster than real time needs them ``k`` times faster too. Timeouts stay:
-    they count in sim time (``use_sim_time``)."""
-    if isinstance(params, dict):
-        out = {}
-        for key, value in params.items():
-            kind = NAV2_RATES.get(key)
-            if kind and isinstance(value, (int, float)) and not isinstance(value, bool):
-                value = value * k if kind == "rate" else max(1, int(round(value / k)))
-            out[key] = scale_nav2_rates(value, k)
-        return out
-    return params
+@dataclass
+class IncludeSpec:
+    """Another package's launch file, included with ``arguments`` (``nav2:=bringup``)."""
+    package: str
+    launch_file: str  # under the package's share dir
+    arguments: dict[str, str]
+
+
+def nav2_overlay(value: str, params_file: str, share_dir: str) -> str | None:
+    """The overlay file a Nav2 campaign merges on: the package's for a user's params file."""
+    if value.strip().lower() == "none":
+        return None
+    if value:
+        return value
+    return os.path.join(share_dir, *OVERLAY_FILE) if params_file else None
+
+
+def nav2_stack(ns: str, mode: str, params: dict, scaled: Path, base: CampaignPlan, k: float, upsample: int,
+               start_timeout: float, early: bool, speed: float | None, config_file: str, profile: str) -> list[NodeSpec]:
+    """One stack: ``robot_world``, Nav2 (with ``nav2:=ours``) and ``sut_adapter``. In the root
+    namespace (``ns`` = '') as one stack runs; else every node of it in ``/<ns>``, on its own
+    world's clock (``/<ns>/clock``) and TF (``/<ns>/tf``), with the params nested under ``ns``
+    (``nav2_params.for_namespace``) in a file of its own beside the log."""
+    at = (lambda topic: f"/{ns}{topic}") if ns else (lambda topic: topic)  # noqa: E731
+    suffix = f"_{ns}" if ns else ""
+    world = NodeSpec("robot_world", "robot_world", {
+        "time_scale": k, "seed": base.seed, "paired_start": True,
+        **{f"{name}_topic": at(f"/{name}") for name in ("map", "initialpose", "cmd_vel", "odom", "scan", "collision",
+                                                         "clock")}}, namespace=ns)
+    nav2 = []
+    if mode == "ours":
+        files = [str(scaled)]
+        if ns:
+            files = [str(write_params(for_namespace(params, ns), scaled.with_name(f"{scaled.stem}.{ns}.yaml"),
+                                      f"{scaled.name} for the stack in /{ns}", overwrite=True))]
+        remap = [("/tf", "tf"), ("/tf_static", "tf_static"), ("/clock", at("/clock"))] if ns else []
+        nav2 = [NodeSpec(name, executable, {"use_sim_time": True}, package=package, params_files=files,
+                         namespace=ns, remappings=remap) for name, package, executable in NAV2_NODES]
+    lifecycle = ",".join(f"{ns}/{n}" if ns else n for n in ("planner_server", "controller_server", "bt_navigator"))
+    adapter = NodeSpec(f"sut_adapter{suffix}", "sut_adapter", {
+        "problem": "robot", "worker_id": f"nav2{suffix}_{base.run_id[-6:]}", "goal_mode": "action", "time_scale": k,
+        "map_topic": at("/map"), "initialpose_topic": at("/initialpose"), "odom_topic": at("/odom"),
+        "collision_topic": at("/collision"), "plan_topic": at("/plan"), "action_name": at("/navigate_to_pose"),
+        "nav2_lifecycle_nodes": lifecycle,
+        "nav2_clear_costmaps": ",".join(at(f"/{c}_costmap/clear_entirely_{c}_costmap") for c in ("global", "local")),
+        "map_upsample": upsample,
+        "tick_period": 0.02,  # a turn every 20 ms is plenty at Nav2's pace, and leaves it the CPU
+        "settle_time": 1.0, "start_timeout": start_timeout,
+        "early_verdicts": early, "time_limit_speed": speed or 0.0,
+        "config_file": config_file, "profile": profile, "min_result_subscribers": 2})
+    return [world, *nav2, adapter]
+
+
+def nav2_result_timeout(cfg: Any, speed: float | None, time_scale: float, start_timeout: float) -> float:
+    """How long the generator waits for a scenario: a safety net for an adapter that died, beyond
+    the adapter's own guard (``wall_slack`` 2 x the time limit / time_scale + start_timeout) for a
+    route ten 50 m map sides long (the longest routes searches have found are about nine)."""
+    return 2.0 * cfg.time_limit(10 * 50.0, speed) / time_scale + start_timeout + 60.0
 
 
 def plan_nav2_campaign(values: dict[str, str], share_dir: str, seed: int | None = None) -> CampaignPlan:
     """``nav2_campaign.launch.py``'s node set: recorder, ``robot_world`` (free-running at
-    ``time_scale``, publishing ``/clock``), Nav2 with the user's params file (rates scaled, see
-    ``scale_nav2_rates``; written next to the log), ``sut_adapter`` (``goal_mode:=action``,
-    collisions from the world) as the campaign's one worker, and the generator."""
-    import yaml
-
+    ``time_scale``, publishing ``/clock``), Nav2 (``nav2``: ours, nav2_bringup's, or the user's
+    own), ``sut_adapter`` (``goal_mode:=action``, collisions from the world) as the campaign's one
+    worker, and the generator. The params file (the user's, the overlay merged on, rates scaled:
+    ``nav2_params``) is written next to the log; its controller's top speed sets the time limit."""
     value = {name: values.get(name, default) for name, (default, _) in NAV2_LAUNCH_ARGUMENTS.items()}
     base = plan_campaign({**{k: v for k, v in value.items() if k in LAUNCH_ARGUMENTS}, "problem": "robot",
                           "workers": "0"}, share_dir, seed)
+    mode = value["nav2"]
+    if mode not in NAV2_MODES:
+        raise ValueError(f"nav2: unknown {mode!r} (allowed: {'|'.join(NAV2_MODES)})")
     k = _number("time_scale", value["time_scale"], float, 0.0)
     if not k > 0:
         raise ValueError("time_scale: must be > 0")
     upsample = _number("map_upsample", value["map_upsample"], int, 1)
+    early = launch_flag("early_verdicts", value["early_verdicts"])
     source = value["params_file"] or os.path.join(share_dir, "config", "nav2", "pioneer_navfn_dwb.yaml")
-    try:
-        params = yaml.safe_load(Path(source).read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ValueError(f"params_file: cannot read {source}: {exc}") from None
+    overlay = nav2_overlay(value["params_overlay"], value["params_file"], share_dir)
+    params = merged_params(source, overlay, k)
     scaled = base.mcap.with_name(base.mcap.stem + ".nav2_params.yaml")
-    scaled.parent.mkdir(parents=True, exist_ok=True)
-    scaled.write_text(f"# {source} with Nav2's loop rates x {k:g} (time_scale)\n"
-                      + yaml.safe_dump(scale_nav2_rates(params, k), sort_keys=False))
-    result_timeout = _number("result_timeout", value["result_timeout"], float, 0.0) or 2 * 300.0 / k + 60.0
+    write_params(params, scaled, f"{source}" + (f" + {overlay}" if overlay else "")
+                 + f", Nav2's loop rates x {k:g} (time_scale)", overwrite=True)  # named after the run: ours
+    speed = top_speed(params)
+    start_timeout = EXTERNAL_START_TIMEOUT if mode == "external" else 120.0
+    from .sims.robot import RobotSimConfig
+
+    result_timeout = (_number("result_timeout", value["result_timeout"], float, 0.0)
+                      or nav2_result_timeout(RobotSimConfig(), speed, k, start_timeout))
+    stacks = _number("stacks", value["stacks"], int, 1)
+    if stacks > 1 and mode != "ours":
+        raise ValueError(f"stacks: {stacks} stacks need nav2:=ours (each stack's Nav2 runs on its own world's clock, "
+                         "/<ns>/clock, which navigation_launch.py cannot remap)")
     recorder, generator = base.node("recorder"), base.node("generator")
-    recorder.parameters["extra_topics"] = ",".join(NAV2_TOPICS)
-    generator.parameters.update(min_subscribers=2, min_workers=1, max_in_flight=1, result_timeout=result_timeout)
-    world = NodeSpec("robot_world", "robot_world", {"time_scale": k, "seed": base.seed, "collision_topic": "/collision",
-                                                      "paired_start": True})
-    nav2 = [NodeSpec(name, executable, {"use_sim_time": True}, package=package, params_files=[str(scaled)])
-            for name, package, executable in NAV2_NODES]
-    adapter = NodeSpec("sut_adapter", "sut_adapter", {
-        "problem": "robot", "worker_id": f"nav2_{base.run_id[-6:]}", "goal_mode": "action", "time_scale": k,
-        "collision_topic": "/collision", "plan_topic": "/plan", "map_upsample": upsample,
-        "tick_period": 0.02,  # a turn every 20 ms is plenty at Nav2's pace, and leaves it the CPU
-        "settle_time": 1.0, "start_timeout": 120.0,
-        "config_file": generator.parameters["config_file"], "profile": value["profile"],
-        "min_result_subscribers": 2})
-    base.nodes = [recorder, world, *nav2, adapter, generator]
-    base.workers = 1
+    groups = [""] if stacks == 1 else [f"stack{i}" for i in range(stacks)]
+    recorder.parameters["extra_topics"] = ",".join(
+        topic if not ns else f"/{ns}{topic}" for ns in groups for topic in NAV2_TOPICS)
+    generator.parameters.update(min_subscribers=1 + stacks, min_workers=stacks, max_in_flight=1,
+                                result_timeout=result_timeout)
+    nodes = [recorder]
+    for ns in groups:
+        nodes += nav2_stack(ns, mode, params, scaled, base, k, upsample, start_timeout, early, speed,
+                            generator.parameters["config_file"], value["profile"])
+    base.nodes = nodes + [generator]
+    base.workers = stacks
+    base.nav2_params = scaled
+    if mode == "bringup":
+        base.includes = [IncludeSpec("nav2_bringup", "launch/navigation_launch.py", {
+            "params_file": str(scaled), "use_sim_time": "true", "autostart": "true", "use_composition": "False"})]
+    if mode == "external":
+        base.notes.append(f"nav2:=external: start Nav2 within {start_timeout:.0f} s, in this ROS domain: ros2 launch "
+                          f"nav2_bringup navigation_launch.py use_sim_time:=true params_file:={scaled}")
     return base
 
 

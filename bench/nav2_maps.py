@@ -6,8 +6,12 @@
     python bench/nav2_maps.py --report          # the table and three failure pictures, from the results
 
 Each map runs through ``robot_world`` (free-running at ``--time-scale``, ``/clock``), Nav2 with
-``--params-file`` (default ``config/nav2/pioneer_navfn_dwb.yaml``, loop rates x time scale), and
-``sut_adapter`` in Nav2 mode (``navigate_to_pose``), all on the install's rclpy over
+``--params-file`` (default ``config/nav2/pioneer_navfn_dwb.yaml``; another file gets the overlay
+``config/nav2/ambiegen_overlay.yaml`` merged on, ``--overlay none`` for none; loop rates x time
+scale), started as our five nodes (``--nav2 ours``) or by nav2_bringup's ``navigation_launch.py``
+(``--nav2 bringup``: smoother, velocity smoother, collision monitor, ... as a Nav2 user runs it),
+and ``sut_adapter`` in Nav2 mode (``navigate_to_pose``; Nav2's own result decides unless
+``--early-verdicts``; the early verdict is recorded either way), all on the install's rclpy over
 ``rmw_cyclonedds_cpp``; a recorder writes a robot bag per batch to ``--mcap-dir`` (outside the
 repository: they are large). Maps: ``random`` = valid maps of the profile (seeded) that have a
 clearance route (else they would be invalid tests); ``suite:FILE[,FILE...]`` = the best ``--count`` of
@@ -117,28 +121,39 @@ def run_batch(args) -> int:
     print(f"{len(maps)} maps, {len(maps) - len(todo)} already in {RUNS}; running {len(todo)}")
     if not todo:
         return 0
-    import yaml
+    from ambiegen_ros import nav2_params
 
     stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
     mcap_dir = Path(args.mcap_dir).expanduser()
     mcap_dir.mkdir(parents=True, exist_ok=True)
     mcap = mcap_dir / f"nav2_{args.label}_{stamp}.mcap"
-    params = yaml.safe_load(Path(args.params_file).read_text())
-    scaled = mcap.with_suffix(".nav2_params.yaml")
-    scaled.write_text(yaml.safe_dump(launch_logic.scale_nav2_rates(params, args.time_scale), sort_keys=False))
+    ours = Path(args.params_file).resolve() == (REPO / "config" / "nav2" / "pioneer_navfn_dwb.yaml").resolve()
+    overlay = None if args.overlay == "none" or (ours and not args.overlay) else (
+        args.overlay or str(REPO / "config" / "nav2" / "ambiegen_overlay.yaml"))
+    params = nav2_params.merged_params(args.params_file, overlay, args.time_scale)
+    scaled = nav2_params.write_params(params, mcap.with_suffix(".nav2_params.yaml"),
+                                      f"{args.params_file} + {overlay}, rates x {args.time_scale:g}")
+    speed = nav2_params.top_speed(params)
+    server = params["controller_server"]["ros__parameters"]
+    controller = str(server[server["controller_plugins"][0]]["plugin"])
     domain = args.domain_id
     ros = je.ros_env(domain)
     logs = Path(tempfile.mkdtemp(prefix=f"nav2_{args.label}_"))
     graph = je.Graph(logs)
     install = je.working_tree_install(logs / "ws")  # rclpy needs ambiegen_msgs built by colcon
-    ours = lambda executable, **p: f"ros2 run ambiegen_ros {executable} {je.ros_args(**p)}"  # noqa: E731
-    graph.ros("world", ours("robot_world", time_scale=args.time_scale, seed=args.seed,
+    run = lambda executable, **p: f"ros2 run ambiegen_ros {executable} {je.ros_args(**p)}"  # noqa: E731
+    graph.ros("world", run("robot_world", time_scale=args.time_scale, seed=args.seed,
                                 collision_topic="/collision", paired_start=True),
               install, ros)
-    for name, package, executable in launch_logic.NAV2_NODES:
-        graph.ros(name, f"ros2 run {package} {executable} --ros-args --params-file {scaled} -r __node:={name}",
-                  install, ros)
-    graph.ros("adapter", ours("sut_adapter", problem="robot", worker_id="nav2", goal_mode="action",
+    if args.nav2 == "bringup":
+        graph.ros("nav2", f"ros2 launch nav2_bringup navigation_launch.py use_sim_time:=true autostart:=true "
+                          f"use_composition:=False params_file:={scaled}", install, ros)
+    else:
+        for name, package, executable in launch_logic.NAV2_NODES:
+            graph.ros(name, f"ros2 run {package} {executable} --ros-args --params-file {scaled} -r __node:={name}",
+                      install, ros)
+    graph.ros("adapter", run("sut_adapter", problem="robot", worker_id="nav2", goal_mode="action",
+                             early_verdicts=args.early_verdicts, time_limit_speed=speed or 0.0,
                               time_scale=args.time_scale, collision_topic="/collision", plan_topic="/plan", tick_period=0.02,
                               map_upsample=args.map_upsample,
                               settle_time=1.0, start_timeout=120.0, profile=args.profile,
@@ -153,8 +168,8 @@ def run_batch(args) -> int:
     p = get_problem("robot", {**overrides, "profile": args.profile})
     sim_cfg = full_model_executor(p).config
 
-    def limit(sc) -> float:  # a safety net: the oracle's own time limit (from the A* length) plus slack
-        return sim_cfg.time_limit(float(p.evaluate_scenarios([sc]).f1[0])) / args.time_scale + 300.0
+    def limit(sc) -> float:  # a safety net: twice the oracle's own time limit (from the A* length) plus slack
+        return 2 * sim_cfg.time_limit(float(p.evaluate_scenarios([sc]).f1[0]), speed) / args.time_scale + 300.0
     print(f"logs in {logs}; bag {mcap}")
     try:
         driver = Driver(node, p)
@@ -172,7 +187,11 @@ def run_batch(args) -> int:
             traj = np.asarray(res.trajectory)[::10].round(3).tolist() if res.trajectory is not None else None
             row = {"label": args.label, "time_scale": args.time_scale, "key": scenario_key(sc.to_dict(), overrides),
                    "profile": args.profile, "problem_config": overrides, "oracle": args.oracle,
-                   "params_file": str(args.params_file), "scenario": sc.to_dict(),
+                   "params_file": str(args.params_file), "overlay": overlay, "nav2": args.nav2,
+                   "controller": controller, "early_verdicts": args.early_verdicts,
+                   "early_verdict": m.get("early_verdict"), "early_detail": m.get("early_detail"),
+                   "early_time": m.get("early_time"), "decided_by": m.get("decided_by"),
+                   "time_limit": m.get("time_limit"), "scenario": sc.to_dict(),
                    "failure_kind": res.failure_kind, "failed": res.failed, "detail": res.detail,
                    "nav2_status": m.get("nav2_status"), "nav2_error_code": m.get("nav2_error_code"),
                    "nav2_error_msg": m.get("nav2_error_msg"), "plans": m.get("plans"),
@@ -184,7 +203,8 @@ def run_batch(args) -> int:
             with open(RUNS, "a") as fh:  # appended, never rewritten
                 fh.write(json.dumps(row) + "\n")
             print(f"map {i}: {res.failure_kind} ({res.detail}); Nav2 {m.get('nav2_status')} "
-                  f"{m.get('nav2_error_code')} {m.get('nav2_error_msg') or ''}; {wall:.0f} s wall", flush=True)
+                  f"{m.get('nav2_error_code')} {m.get('nav2_error_msg') or ''}; early {m.get('early_verdict')} "
+                  f"({m.get('early_detail')}); {wall:.0f} s wall", flush=True)
     finally:
         node.shutdown()
         for name in list(graph.procs):
@@ -225,6 +245,30 @@ def time_scale_check(rows: list[dict]) -> list[str]:
             dt = [abs(float(b["time"]) - float(a["time"])) for a, b in pairs if a["time"] and b["time"]]
             move = f"{np.median(dt):.1f} s / {max(dt):.1f} s" if dt else "-"
             out.append(f"| {k:g} | {len(pairs)} | {sum(same)} | {differ} | {move} |")
+    return out
+
+
+def verdict_agreement(rows: list[dict]) -> list[str]:
+    """Per batch that recorded them: the early verdicts (the paper's stall / loiter monitors) beside
+    the verdicts given, and how often the two agree on pass or fail."""
+    out = []
+    batches = sorted({(r["label"], r["time_scale"]) for r in rows if r.get("early_verdict")})
+    if not batches:
+        return out
+    out += ["", "Early verdicts (the paper's stall and loitering monitors) beside the verdicts given "
+                "(Nav2's own unless the batch ran with early verdicts):", "",
+            "| label | time scale | decided by | verdicts | early verdicts | agree (pass / fail) | early said fail, "
+            "Nav2 passed | early said pass, Nav2 failed | early undecided |", "|---|---|---|---|---|---|---|---|---|"]
+    for label, k in batches:
+        batch = [r for r in rows if r["label"] == label and r["time_scale"] == k and r.get("early_verdict")]
+        kinds = lambda key: ", ".join(f"{kd} {n}" for kd, n in Counter(r[key] for r in batch).most_common())  # noqa: E731
+        decided = [r for r in batch if r["early_verdict"] != "undecided"]
+        agree = sum((r["early_verdict"] == "none") == (r["failure_kind"] == "none") for r in decided)
+        early_fail = sum(r["early_verdict"] != "none" and r["failure_kind"] == "none" for r in decided)
+        early_pass = sum(r["early_verdict"] == "none" and r["failure_kind"] != "none" for r in decided)
+        by = "early monitors" if batch[0].get("early_verdicts") else "Nav2"
+        out.append(f"| {label} | {k:g} | {by} | {kinds('failure_kind')} | {kinds('early_verdict')} | {agree} of "
+                   f"{len(decided)} | {early_fail} | {early_pass} | {len(batch) - len(decided)} |")
     return out
 
 
@@ -277,6 +321,7 @@ def report(args) -> int:
         lines.append(f"* {label} (time scale {k:g}): failed {span([x for x, r in zip(f1, batch) if r['failed']])}; "
                      f"passed {span([x for x, r in zip(f1, batch) if not r['failed']])}")
     lines += time_scale_check(rows)
+    lines += verdict_agreement(rows)
     lines += ["", "Pictures: map, trajectory (coloured by time), Nav2's last plan, and where it failed.", ""]
     # three pictures: failures distinct across the batches first, then one of each batch not shown yet
     chosen = [f for f in failures if f[0]]
@@ -312,6 +357,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--time-scale", type=float, default=1.0)
     ap.add_argument("--map-upsample", type=int, default=5)
     ap.add_argument("--params-file", default=str(REPO / "config" / "nav2" / "pioneer_navfn_dwb.yaml"))
+    ap.add_argument("--overlay", default="", help="merged onto --params-file ('' = config/nav2/ambiegen_overlay.yaml "
+                                                  "for a params file not ours; none = none)")
+    ap.add_argument("--nav2", default="ours", choices=("ours", "bringup"),
+                    help="our five Nav2 nodes, or nav2_bringup's navigation_launch.py")
+    ap.add_argument("--early-verdicts", action="store_true",
+                    help="the paper's stall/loiter monitors decide (default: Nav2's own result)")
     ap.add_argument("--mcap-dir", default="~/nav2-bags")
     ap.add_argument("--config", default="", metavar="FILE.yaml", help="problem_config of the maps (e.g. a nearer goal)")
     ap.add_argument("--oracle", action="append", default=[], metavar="FIELD=VALUE",

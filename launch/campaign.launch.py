@@ -13,15 +13,18 @@ keep_workers, config_file ('' = config/<problem>.yaml), profile (fidelity profil
 and every sim node: replication | refined; '' = the config file's, else replication). The node
 set, names and end-of-run rules live in ambiegen_ros/launch_logic.py (tested without ROS).
 """
+import os
 import signal
 import time
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, EmitEvent, LogInfo, OpaqueFunction, RegisterEventHandler
+from launch.actions import (DeclareLaunchArgument, EmitEvent, IncludeLaunchDescription, LogInfo, OpaqueFunction,
+                            RegisterEventHandler)
 from launch.event_handlers import OnProcessExit
 from launch.events import Shutdown, matches_action
 from launch.events.process import SignalProcess
+from launch.launch_description_sources import PythonLaunchDescriptionSource
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
@@ -44,8 +47,10 @@ def campaign_launch(arguments, plan_fn):
 def _actions(plan):
     started = time.monotonic()
     exit_codes = {}
-    nodes = {spec.name: Node(package=spec.package, executable=spec.executable, name=spec.name, output="screen",
-                             parameters=[*spec.params_files, spec.parameters]) for spec in plan.nodes}
+    nodes = {f"{spec.namespace}/{spec.name}".lstrip("/"): Node(
+        package=spec.package, executable=spec.executable, name=spec.name, namespace=spec.namespace or None,
+        output="screen", parameters=[*spec.params_files, spec.parameters], remappings=spec.remappings)
+        for spec in plan.nodes}
     recorder, generator = nodes["recorder"], nodes["generator"]
 
     def on_generator_exit(event, _context):
@@ -62,11 +67,16 @@ def _actions(plan):
             return [EmitEvent(event=Shutdown(reason=f"recorder exited ({event.returncode})"))]
         return []
 
+    includes = [IncludeLaunchDescription(
+        PythonLaunchDescriptionSource(os.path.join(get_package_share_directory(spec.package), spec.launch_file)),
+        launch_arguments=list(spec.arguments.items())) for spec in plan.includes]
     return [
         LogInfo(msg=f"campaign {plan.run_id}: recording to {plan.mcap}"),
+        *[LogInfo(msg=note) for note in plan.notes],
         RegisterEventHandler(OnProcessExit(target_action=generator, on_exit=on_generator_exit)),
         RegisterEventHandler(OnProcessExit(target_action=recorder, on_exit=on_recorder_exit)),
         *nodes.values(),
+        *includes,
     ]
 
 

@@ -1,18 +1,34 @@
-"""ros2 launch ambiegen_ros nav2_campaign.launch.py params_file:=<your nav2 params.yaml> evaluations:=200
+"""ros2 launch ambiegen_ros nav2_campaign.launch.py [nav2:=ours|bringup|external] [params_file:=<your params>]
 
 Nav2 as the system under test: a recorder, `robot_world` (each scenario's map as a world, with
-/clock at `time_scale`), Nav2 (controller, planner, behaviour server, BT navigator and a
-lifecycle manager, all on the world's clock, with your params file or the package's
-config/nav2/pioneer_navfn_dwb.yaml for a pioneer-sized robot with NavFn + DWB), `sut_adapter` in
-Nav2 mode (the navigate_to_pose action, costmaps cleared per map, Nav2's result recorded) and the
-generator. It ends by itself like campaign.launch.py; the log is a robot bag (/scan, /odom, /tf,
-/cmd_vel, /plan beside every scenario and result).
+/clock at `time_scale`), Nav2, `sut_adapter` in Nav2 mode (the navigate_to_pose action, costmaps
+cleared per map, Nav2's own result as the verdict) and the generator. It ends by itself like
+campaign.launch.py; the log is a robot bag (/scan, /odom, /tf, /cmd_vel, /plan beside every
+scenario and result).
 
-Arguments: those of campaign.launch.py except problem/workers/keep_workers, plus params_file,
-time_scale (Nav2's loop rates are multiplied by it in a copy of the params file written next to
-the log: Jazzy's loops run on wall-clock rates), map_upsample (1 m map cells to Nav2 as k x k
-cells) and result_timeout. The plan lives in ambiegen_ros/launch_logic.py (plan_nav2_campaign).
-See docs/external_sut.md for the measured time-scale limits.
+Which Nav2 (`nav2`):
+  ours      the minimum Nav2 started here: controller, planner, behaviour server, BT navigator and
+            a lifecycle manager (default; with config/nav2/pioneer_navfn_dwb.yaml: NavFn + DWB)
+  bringup   nav2_bringup's own navigation_launch.py, included with the merged params (Jazzy's
+            full set: smoother, velocity smoother, collision monitor, waypoint follower, docking)
+  external  only our side; you start Nav2 yourself in the same ROS domain, e.g.
+            `ros2 launch nav2_bringup navigation_launch.py use_sim_time:=true params_file:=<merged>`
+            with the file `ambiegen nav2-params` writes (the launch also writes one next to the log
+            and prints the command); the adapter waits 600 s for it
+
+The params file (yours, or the package's) gets `params_overlay` merged on (for a file of yours:
+config/nav2/ambiegen_overlay.yaml, the frames, footprint, laser and base limits of our world) and
+Nav2's loop rates multiplied by `time_scale` (Jazzy's loops run on wall-clock rates); it is written
+next to the log. Verdicts: Nav2's own (goal succeeded = PASS, aborted = nav2_aborted, a collision,
+or the time limit max(300 s, 2 x the clearance route / the controller's top speed + 60 s));
+`early_verdicts:=true` lets the paper's stall and loitering monitors decide instead. Either way
+each result records the early verdict beside Nav2's.
+
+Arguments: those of campaign.launch.py except problem/workers/keep_workers, plus nav2,
+params_file, params_overlay, time_scale, map_upsample (1 m map cells to Nav2 as k x k cells),
+early_verdicts and result_timeout. The plan lives in ambiegen_ros/launch_logic.py
+(plan_nav2_campaign). See docs/external_sut.md for the two-command recipe and the measured
+time-scale limits.
 """
 import importlib.util
 from pathlib import Path

@@ -12,9 +12,10 @@ In:
 
 Out (stamps are simulated time):
 * ``clock_topic`` (``rosgraph_msgs/Clock``, best effort, ``clock_rate`` Hz of wall time; '' = none);
-* ``/tf``: ``map_frame -> odom_frame`` (identity) and ``odom_frame -> base_frame`` (ground truth)
+* ``tf`` (``/tf`` in the root namespace, ``/<ns>/tf`` in a namespace, as Nav2 remaps it):
+  ``map_frame -> odom_frame`` (identity) and ``odom_frame -> base_frame`` (ground truth)
   every step, also before the first map (the robot at the origin, or at the last initial pose:
-  Nav2's costmaps wait for this transform before they activate); ``/tf_static``: ``base_frame -> scan_frame`` (the laser sits on the rotation centre);
+  Nav2's costmaps wait for this transform before they activate); ``tf_static``: ``base_frame -> scan_frame`` (the laser sits on the rotation centre);
 * ``odom_topic`` (``nav_msgs/Odometry``, pose and twist) every step;
 * ``scan_topic`` (``sensor_msgs/LaserScan``) every ``1 / scan_rate`` simulated seconds: ``sim.beams``
   beams over ``sim.fov_deg``, ``sim.laser_range`` m, Gaussian noise ``sim.laser_noise`` m seeded
@@ -105,8 +106,9 @@ class RobotWorldNode:
         make = self._make = n.new_message
         self.pub_odom = n.create_publisher("nav_msgs/msg/Odometry", topic["odom"], SENSOR)
         self.pub_scan = n.create_publisher("sensor_msgs/msg/LaserScan", topic["scan"], SENSOR)
-        self.pub_tf = n.create_publisher("tf2_msgs/msg/TFMessage", "/tf", TF)
-        self.pub_tf_static = n.create_publisher("tf2_msgs/msg/TFMessage", "/tf_static", TF_STATIC)
+        # relative, as Nav2 remaps them: /tf in the root namespace, /<ns>/tf for a namespaced stack
+        self.pub_tf = n.create_publisher("tf2_msgs/msg/TFMessage", "tf", TF)
+        self.pub_tf_static = n.create_publisher("tf2_msgs/msg/TFMessage", "tf_static", TF_STATIC)
         self.pub_collision = (n.create_publisher("diagnostic_msgs/msg/DiagnosticArray", topic["collision"], DEFAULT)
                               if topic["collision"] else None)
         self.pub_clock = (n.create_publisher("rosgraph_msgs/msg/Clock", topic["clock"], CLOCK)

@@ -26,10 +26,18 @@ To the generator it is one more sim worker (heartbeats on ``/ambiegen/workers``,
   With ``goal_mode:=action`` (rclpy only) the goal is Nav2's ``navigate_to_pose`` action
   (``sim_nodes.nav2_client``): a scenario starts once the action server is up and every node of
   ``nav2_lifecycle_nodes`` is active; each new map clears both costmaps
-  (``nav2_clear_costmaps``); Nav2 aborting (or rejecting) its goal before our oracle decided is a
-  ``nav2_aborted`` failure; Nav2's own result is recorded beside the verdict (``nav2_status``,
-  ``nav2_error_code``, ``nav2_error_msg``), and a goal still running when the oracle decides is
-  cancelled.
+  (``nav2_clear_costmaps``). **Nav2's own outcome is the verdict** (``early_verdicts:=false``,
+  the default in this mode), so its recoveries (clear costmaps, spin, back up, wait, replan) get
+  their turn: the goal succeeded = PASS; Nav2 aborted (or rejected) it = FAIL(nav2_aborted, with
+  its error code and message); a collision in the world = FAIL(collision); no result by the time
+  limit = FAIL(timeout). The time limit is max(``oracle.timeout`` 300 s, 2 x the clearance
+  route / ``time_limit_speed`` + 60 s), ``time_limit_speed`` being the controller's top speed
+  (the launch reads it from the params file). The paper's stall and loitering monitors still
+  watch: what they would have said (their first verdict, or ``undecided``) is recorded in
+  ``metrics["early_verdict"]``, ``early_detail`` and ``early_time``. With
+  ``early_verdicts:=true`` they decide, as for a robot without recoveries, and a goal still
+  running at their verdict is cancelled. Nav2's result is recorded beside the verdict either way
+  (``nav2_status``, ``nav2_error_code``, ``nav2_error_msg``).
 * ``vehicle``: the road on ``road_topic`` (``nav_msgs/Path``, latched); watches ``odom_topic``
   (pose = centre of the car's bounding box).
 * ``thermostat``: set points on ``setpoint_topic`` (``std_msgs/Float64``), each when its
@@ -156,6 +164,16 @@ class SutAdapter:
         self.start_heading = p("start_heading", "route", "robot: initial pose facing along its route (as the full "
                                                           "model starts) | as the scenario message says")
         self.action_name = p("action_name", "navigate_to_pose", "Nav2 action for goal_mode action")
+        self.early_verdicts = bool(p("early_verdicts", self.goal_mode != "action",
+                                     "robot: the paper's stall and loitering monitors (and its goal tolerance) "
+                                     "decide, and Nav2 is cancelled at their verdict (default with goal_mode "
+                                     "topic); false (default with goal_mode action): the stack's own result decides "
+                                     "(Nav2: succeeded = PASS, aborted = nav2_aborted), besides a collision and the "
+                                     "time limit, and the early verdict is recorded beside it"))
+        self.time_limit_speed = float(p("time_limit_speed", 0.0, "robot: top speed [m/s] of the time limit max("
+                                                                 "timeout, 2 x route / speed + 60 s) (the stack's, "
+                                                                 "e.g. Nav2's controller max speed; 0 = the oracle's "
+                                                                 "cruise_speed, 0.3)"))
         nav2_nodes = p("nav2_lifecycle_nodes", "planner_server,controller_server,bt_navigator",
                        "goal_mode action: Nav2 nodes that must be active before a scenario starts")
         nav2_clear = p("nav2_clear_costmaps", "/global_costmap/clear_entirely_global_costmap,"
@@ -331,7 +349,8 @@ class SutAdapter:
                 origin = (float(info.origin.position.x), float(info.origin.position.y))
                 goal = msg.goal.pose.position
                 job.judge = RobotJudge(grid, float(info.resolution), (float(goal.x), float(goal.y)), self.oracle, origin,
-                                       diagonal=self.problem.config.diagonal)
+                                       diagonal=self.problem.config.diagonal, speed=self.time_limit_speed or None,
+                                       early_verdicts=self.early_verdicts)
                 job.limit_sim = self.oracle.timeout  # the floor; the route's own limit once the start is seen
                 s = msg.start.pose
                 job.start_pose = (float(s.position.x), float(s.position.y), conversions.yaw_of(s.orientation))
@@ -459,15 +478,19 @@ class SutAdapter:
                and now >= job.anchor + job.schedule[job.next_element][0] / self.time_scale):
             self._publish_element(job.schedule[job.next_element])
             job.next_element += 1
-        if self.nav2 is not None and self.nav2.result is not None and self.nav2.result["status"] != "succeeded":
+        r = None if self.nav2 is None else self.nav2.result
+        if r is not None and (r["status"] != "succeeded" or not self.early_verdicts):
             # Nav2's result carries no stamp: it counts at the newest pose received before it, once
             # every sample up to there is judged (an earlier verdict from them stands)
             if self.nav2_stamp is None:
                 self.nav2_stamp = self.order.newest if self.order.newest is not None else -1
             if self.order.watermark >= self.nav2_stamp and not self.samples:
-                r = self.nav2.result
-                job.judge.fail("nav2_aborted", f"Nav2 {r['status']} its goal after {job.judge.elapsed:.1f} s (error "
-                                               f"{r['error_code']}{': ' + r['error_msg'] if r['error_msg'] else ''})")
+                if r["status"] == "succeeded":
+                    job.judge.stack_result(True, "none", f"Nav2 reached the goal after {job.judge.elapsed:.1f} s")
+                else:
+                    job.judge.stack_result(False, "nav2_aborted", f"Nav2 {r['status']} its goal after "
+                                           f"{job.judge.elapsed:.1f} s (error {r['error_code']}"
+                                           f"{': ' + r['error_msg'] if r['error_msg'] else ''})")
                 self.finish(job.judge.outcome())
                 return
         if self.order.pending and now >= self._next_stream_check:

@@ -53,6 +53,7 @@ FLOORS: dict[str, int] = {
     "ambiegen_ros.experiment": 3,
     "ambiegen_ros.run_config": 3,
     "ambiegen_ros.launch_logic": 3,
+    "ambiegen_ros.nav2_params": 3,
     "ambiegen_ros.viz": 3,
     "ambiegen_ros.doctor": 3,
     # 4: the command line, the only place that knows argparse

@@ -37,4 +37,4 @@ def test_help_lists_the_commands_in_their_usual_order():
     listed = [line.split()[0] for line in run.stdout.splitlines()
               if line.startswith("    ") and not line.startswith("     ")]
     assert listed == ["search", "evaluate", "show", "execute", "campaign", "replay", "recover", "experiment",
-                      "doctor"]
+                      "nav2-params", "doctor"]

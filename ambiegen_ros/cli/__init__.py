@@ -10,12 +10,13 @@ import argparse
 import sys
 
 from .. import __version__
-from . import campaign, doctor, evaluate, execute, experiment, search
+from . import campaign, doctor, evaluate, execute, experiment, nav2, search
 from .common import EXIT_BAD_INPUT
 
 REGISTRARS = (search.register, evaluate.register, execute.register, campaign.register,
-              experiment.register, doctor.register)
-"""In ``--help`` order: search, evaluate, show, execute, campaign, replay, recover, experiment, doctor."""
+              experiment.register, nav2.register, doctor.register)
+"""In ``--help`` order: search, evaluate, show, execute, campaign, replay, recover, experiment,
+nav2-params, doctor."""
 
 
 def build_parser() -> argparse.ArgumentParser:

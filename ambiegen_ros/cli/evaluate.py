@@ -1,5 +1,5 @@
 """`ambiegen evaluate` (validity and surrogate F1 of a scenario or a suite) and `ambiegen show`
-(a picture of a scenario or of a run directory)."""
+(a picture of a scenario or of a run directory, or an animation of one robot scenario of a robot bag)."""
 from __future__ import annotations
 
 import argparse
@@ -91,10 +91,14 @@ def evaluate_suite(args: argparse.Namespace) -> int:
 
 
 def cmd_show(args: argparse.Namespace) -> int:
+    target = Path(args.target)
+    if target.suffix.lower() == ".mcap":
+        return show_bag(args, target)
+    if args.scenario is not None or args.fps is not None or args.speed is not None or args.overwrite:
+        raise BadInput("--scenario, --fps, --speed and --overwrite are for a robot bag (RUN.mcap)")
     from ..viz import save_scenario_plot
     from ..viz.runs import plot_run
 
-    target = Path(args.target)
     if target.is_dir():
         if not (target / "suite.json").exists():
             raise BadInput(f"{target}: not a run directory (no suite.json)")
@@ -119,6 +123,54 @@ def cmd_show(args: argparse.Namespace) -> int:
     return 0
 
 
+def show_bag(args: argparse.Namespace, path: Path) -> int:
+    """One robot scenario of a robot bag as a GIF/MP4; without --scenario, the bag's scenarios (exit 2)."""
+    from ..ros.robot_bag import read_index, read_run
+
+    if args.execute or args.config or args.profile:
+        raise BadInput("--execute, --config and --profile are for a scenario file; a bag is drawn as recorded")
+    output = Path(args.output) if args.output else None
+    if args.scenario is not None:  # a wrong -o fails before the bag is read
+        from ..viz.animation import check_output
+
+        output = output or path.with_name(f"{path.stem}_scenario_{args.scenario}.gif")
+        try:
+            check_output(output, args.overwrite)
+        except ValueError as exc:
+            raise BadInput(str(exc)) from None
+    index = read_index(path)
+    if args.scenario is None:
+        for entry in index.entries.values():
+            print(f"{entry.scenario_id:6d}  {entry.verdict[:70]:<24s}  {_log_span(index, entry)}")
+        raise BadInput(f"{path}: {len(index.entries)} robot scenarios of run {index.run_id} (above); pick one: "
+                       f"ambiegen show {path} --scenario ID -o failure.gif")
+    from ..viz.animation import save_robot_animation
+
+    run = read_run(index, args.scenario)
+    try:
+        facts = save_robot_animation(run, output, fps=args.fps or 10.0, speed=args.speed or 1.0,
+                                     overwrite=args.overwrite)
+    except ValueError as exc:
+        raise BadInput(str(exc)) from None
+    faster = f", played {facts['playback']:.3g}x (at most {facts['frames']} frames)" \
+        if facts["playback"] > (args.speed or 1.0) + 1e-9 else f", played {facts['playback']:.3g}x"
+    print(f"{facts['path']}  [{run.entry.verdict}] scenario {run.entry.scenario_id}: {facts['frames']} frames of "
+          f"{facts['duration_s']:.1f} simulated s{faster}")
+    print(f"  {_log_span(index, run.entry)}")
+    return 0
+
+
+def _log_span(index, entry) -> str:
+    """Where a scenario lies in the bag's log time: what Foxglove's timeline seeks to."""
+    from datetime import datetime, timezone
+
+    start, end = round(entry.start_ns / 1e9, 3), round(entry.end_ns / 1e9, 3)
+    utc = datetime.fromtimestamp(start, timezone.utc).isoformat(sep=" ", timespec="milliseconds")[:-6]
+    return (f"log time {start:.3f} .. {end:.3f} s ({utc} UTC; "
+            f"+{(entry.start_ns - index.bag_start_ns) / 1e9:.2f} .. +{(entry.end_ns - index.bag_start_ns) / 1e9:.2f} s "
+            "into the bag)")
+
+
 def register(sub) -> None:
     p = sub.add_parser(
         "evaluate", help="validity and surrogate F1 of a scenario JSON, or of a suite (.jsonl: one scenario per line)"
@@ -130,11 +182,23 @@ def register(sub) -> None:
     add_profile_option(p)
     p.set_defaults(func=cmd_evaluate)
 
-    p = sub.add_parser("show", help="picture of a scenario, or of a run directory (convergence + best scenarios)")
-    p.add_argument("target", metavar="SCENARIO.json|RUN_DIR")
-    p.add_argument("-o", "--output", metavar="FILE.png", help="output picture (run dirs: a file prefix)")
+    p = sub.add_parser("show", help="picture of a scenario, or of a run directory (convergence + best scenarios), "
+                       "or an animation of one robot scenario of a robot bag (RUN.mcap)")
+    p.add_argument("target", metavar="SCENARIO.json|RUN_DIR|RUN.mcap",
+                   help="a robot bag (an MCAP with /odom, e.g. from `ambiegen campaign --stack nd`): without "
+                   "--scenario its scenarios are listed, one line each with the verdict and log time, and the "
+                   "exit status is 2 (nothing drawn)")
+    p.add_argument("-o", "--output", metavar="FILE.png|FILE.gif",
+                   help="output picture (run dirs: a file prefix); a bag: .gif, or .mp4 where ffmpeg is installed "
+                   "(default RUN_scenario_ID.gif); an existing file is refused")
     p.add_argument("--execute", action="store_true", help="run the scenario on its full-model simulator and draw the trajectory")
     p.add_argument("--seed", type=int, default=0, help="simulator seed for --execute (default 0)")
+    p.add_argument("--scenario", type=int, metavar="ID", help="a bag: the scenario id to animate (the map, the "
+                   "robot's footprint, /scan, /plan, the trajectory so far, and the verdict with the failure point)")
+    p.add_argument("--fps", type=float, help="a bag: frames per second of the animation; one frame per "
+                   "speed/fps simulated seconds (default 10; at most 300 frames: a longer run is played faster)")
+    p.add_argument("--speed", type=float, help="a bag: playback factor of simulated time (default 1)")
+    p.add_argument("--overwrite", action="store_true", help="a bag: replace an existing -o file")
     add_config_option(p)
     add_profile_option(p)
     p.set_defaults(func=cmd_show)

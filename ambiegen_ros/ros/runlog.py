@@ -15,12 +15,17 @@ from . import topics
 from .types import get_registry
 
 
-def iter_messages(path: str | Path, only: set[str] | None = None) -> Iterator[tuple[str, str, int, Any]]:
-    """(topic, type, log time ns, decoded message) for every message, in log-time order."""
+def iter_messages(path: str | Path, only: set[str] | None = None, start_ns: int | None = None,
+                  end_ns: int | None = None) -> Iterator[tuple[str, str, int, Any]]:
+    """(topic, type, log time ns, decoded message) for every message, in log-time order.
+
+    ``start_ns``/``end_ns`` (log time, end excluded) read one stretch of a long bag: only the
+    chunks that overlap it are decompressed and only its messages decoded."""
     registry = get_registry()
     with open(path, "rb") as fh:
         reader = make_reader(fh)
-        for schema, channel, message in reader.iter_messages(topics=list(only) if only else None, log_time_order=True):
+        for schema, channel, message in reader.iter_messages(topics=list(only) if only else None, starting_at=start_ns,
+                                                             ending_before=end_ns, log_time_order=True):
             typename = schema.name if schema else ""
             yield channel.topic, typename, message.log_time, registry.deserialize(message.data, typename)
 

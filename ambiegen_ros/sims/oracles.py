@@ -88,13 +88,21 @@ class RobotJudge(_Judge):
     (waypoint arrivals, the time limit) is planned from the first sample's cell by the simulator's
     ``robot.plan_route``: the clearance route (``sims.reference.robot``) unless the config says
     ``reference=false`` (then the old A* with the problem's ``diagonal`` rule); ``route_length``
-    overrides its length for the time limit.
+    overrides its length for the time limit, ``speed`` the top speed it divides by (a stack's own,
+    e.g. Nav2's controller's; default the config's ``cruise_speed``).
+
+    ``early_verdicts=False`` judges a stack with its own recoveries: stall, route completion and
+    loitering are recorded, not decided (``RobotMonitors``), and the stack's own result decides
+    (``stack_result``), unless a collision or the time limit came first.
     """
 
     def __init__(self, grid: np.ndarray, resolution: float, goal_xy: tuple[float, float],
                  config: RobotSimConfig | None = None, origin: tuple[float, float] = (0.0, 0.0),
-                 diagonal: str = "both_free", route_length: float | None = None):
+                 diagonal: str = "both_free", route_length: float | None = None, speed: float | None = None,
+                 early_verdicts: bool = True):
         super().__init__()
+        self.speed = speed
+        self.early_verdicts = early_verdicts
         self.cfg = config or RobotSimConfig()
         self.grid = np.asarray(grid, dtype=bool)
         self.resolution = float(resolution)
@@ -115,7 +123,7 @@ class RobotJudge(_Judge):
         """Simulated seconds the oracle needs at most (known once the first sample gave the start)."""
         if self.monitors is not None:
             return self.monitors.time_limit
-        return self.cfg.time_limit(self.route_length) if self.route_length is not None else math.inf
+        return self.cfg.time_limit(self.route_length, self.speed) if self.route_length is not None else math.inf
 
     def start(self, x0: float, y0: float) -> np.ndarray:
         """Plan the route from the start (map frame) before the first sample; returns its waypoints
@@ -126,9 +134,9 @@ class RobotJudge(_Judge):
                                              self.cfg.route_diagonal or self.diagonal)
         if self.route_length is not None:
             length = self.route_length
-        self.monitors = robot.RobotMonitors(self.cfg, self.goal, self.cfg.time_limit(length),
+        self.monitors = robot.RobotMonitors(self.cfg, self.goal, self.cfg.time_limit(length, self.speed),
                                             waypoints[1:] + self.origin if len(waypoints) else None,
-                                            no_route=not len(waypoints))
+                                            no_route=not len(waypoints), early_verdicts=self.early_verdicts)
         return waypoints + self.origin if len(waypoints) else waypoints
 
     def _headings(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -190,6 +198,14 @@ class RobotJudge(_Judge):
         """Simulated seconds covered so far."""
         return 0.0 if self.monitors is None else self.monitors.t
 
+    def stack_result(self, succeeded: bool, kind: str, detail: str) -> None:
+        """The stack's own verdict (Nav2's action result) at the last judged sample: a pass, or a
+        failure of ``kind``. A verdict reached before (a collision, the time limit) stands."""
+        if succeeded and not self.decided:
+            self._decide("none", detail)
+        else:
+            self.fail(kind, detail)
+
     def outcome(self) -> Outcome:
         t = np.concatenate(self._t) if self._t else np.zeros(0)
         xy = np.concatenate(self._xy) if self._xy else np.zeros((0, 2))
@@ -203,6 +219,9 @@ class RobotJudge(_Judge):
             "distance_to_goal": (float(math.hypot(xy[-1, 0] - self.goal[0], xy[-1, 1] - self.goal[1]))
                                  if len(xy) else None),
             "samples": self.samples,
+            # our monitors, the stack's own result, or nothing (an error)
+            "decided_by": ("monitors" if mon is not None and mon.decided
+                           else "stack" if self.kind not in (None, "error") else "none"),
         })
         if mon is not None and self.kind == "stall" and mon.outcome == "no_route":
             metrics["outcome"] = "no_route"

@@ -45,6 +45,13 @@ Oracle (``RobotMonitors``, the paper's monitors), checked on every pose in this 
   (The paper stopped a run after 300 s of wall clock on a simulation about 8x faster than real
   time; a fixed limit is ``timeout_route_factor = timeout_margin = 0``.)
 
+With ``early_verdicts=False`` (a stack with its own recoveries, e.g. Nav2 behind
+``sut_adapter``), stall, success and loitering do not end the run: the first of them is recorded
+as the *early verdict* (``metrics["early_verdict"]``, ``early_detail``, ``early_time``) and only
+a collision (the world's report, or the body touching a wall) and the time limit decide; the
+stack's own result decides the rest (``oracles.RobotJudge.stack_result``). Every run records its
+early verdict either way, so the two can be compared.
+
 Unsafe proximity (body within ``proximity`` = 0.2 m of a wall) and waypoint arrivals (within
 ``waypoint_tolerance``) are recorded (``unsafe_proximity_events``/``_s``, ``waypoints_reached``),
 not failures: the paper's verdict counted stalls and loitering only (its proximity monitor watched
@@ -180,11 +187,12 @@ class RobotSimConfig:
         if self.nd_sectors < 8 or self.nd_sectors % 4:
             raise ScenarioError("option.nd_sectors", "a multiple of 4, at least 8")
 
-    def time_limit(self, route_length: float | None) -> float:
-        """max(timeout, timeout_route_factor x route / cruise_speed + timeout_margin) [s]."""
+    def time_limit(self, route_length: float | None, speed: float | None = None) -> float:
+        """max(timeout, timeout_route_factor x route / speed + timeout_margin) [s]; ``speed`` is the
+        robot's top speed (default ``cruise_speed``; a stack's own, e.g. Nav2's controller's)."""
         if route_length is None or not math.isfinite(route_length):
             return float(self.timeout)
-        return float(max(self.timeout, self.timeout_route_factor * route_length / self.cruise_speed
+        return float(max(self.timeout, self.timeout_route_factor * route_length / (speed or self.cruise_speed)
                          + self.timeout_margin))
 
 
@@ -231,9 +239,11 @@ class RobotMonitors:
     sees of a robot that gave up or never started."""
 
     def __init__(self, config: RobotSimConfig, goal_xy: tuple[float, float], time_limit: float,
-                 waypoints: np.ndarray | None = None, no_route: bool = False):
+                 waypoints: np.ndarray | None = None, no_route: bool = False, early_verdicts: bool = True):
         self.cfg = config
         self.no_route = no_route
+        self.early_verdicts = early_verdicts
+        self.early: dict[str, Any] | None = None  # the first verdict of stall / success / loitering
         self.goal = (float(goal_xy[0]), float(goal_xy[1]))
         self.time_limit = float(time_limit)
         self.waypoints = np.zeros((0, 2)) if waypoints is None else np.asarray(waypoints, dtype=float)
@@ -306,31 +316,56 @@ class RobotMonitors:
                          x, y)
         elif clearance <= 0.0:
             self.stall_cause = "contact"
-            self._decide("stall", "stall", f"the body touches a wall at ({x:.2f}, {y:.2f}) after {self.t:.1f} s "
-                         "and cannot move", x, y)
-        elif stall_cause is not None:
-            self.stall_cause = stall_cause
-            self._decide("stall", "no_route" if stall_cause == "no_route" else "stall",
-                         f"stalled at ({x:.2f}, {y:.2f}) after {self.t:.1f} s: {stall_cause.replace('_', ' ')}", x, y)
-        elif first:
+            touch = f"the body touches a wall at ({x:.2f}, {y:.2f}) after {self.t:.1f} s"
+            if self.early_verdicts:
+                self._decide("stall", "stall", f"{touch} and cannot move", x, y)
+            else:  # no recovery undoes a touch: the collision the world reports
+                self._decide("collision", "collision", touch, x, y)
+        elif first and stall_cause is None:
             return False
-        elif (to_goal := math.hypot(self.goal[0] - x, self.goal[1] - y)) <= cfg.goal_tolerance:
-            self._decide("none", "success", f"goal reached in {self.t:.1f} s ({to_goal:.2f} m from it; "
-                         f"goal tolerance {cfg.goal_tolerance:g} m)", x, y)
-        elif self.t >= cfg.stall_time - 1e-9:
-            n = len(self._window)
-            cx, cy = self._sum[0] / n, self._sum[1] / n
-            if math.hypot(x - cx, y - cy) < cfg.stall_radius and self._window_path < 1e-6:
-                self.stall_cause = "no_route" if self.no_route else "stationary"
-                self._decide("stall", "no_route" if self.no_route else "stall",
-                             f"stalled at ({x:.2f}, {y:.2f}): no motion for {cfg.stall_time:g} s (after {self.t:.1f} s)"
-                             + ("; no route" if self.no_route else ""), x, y)
-            elif math.hypot(x - cx, y - cy) < cfg.stall_radius:
-                self._decide("loiter", "loiter", f"loitering within {cfg.stall_radius:g} m of ({cx:.2f}, {cy:.2f}) "
-                             f"for {cfg.stall_time:g} s (after {self.t:.1f} s)", x, y)
+        elif (early := self._early_rules(x, y, stall_cause)) is not None:
+            kind, outcome, detail, cause = early
+            if self.early is None:
+                self.early = {"kind": kind, "detail": detail, "time": self.t}
+            if self.early_verdicts:
+                self.stall_cause = cause
+                self._decide(kind, outcome, detail, x, y)
         if not self.decided and self.t >= self.time_limit - 1e-9:
             self._decide("timeout", "timeout", f"goal not reached within {self.time_limit:.0f} s", x, y)
         return self.decided
+
+    def _early_rules(self, x: float, y: float, stall_cause: str | None) -> tuple[str, str, str, str | None] | None:
+        """The stall flag, route completion and loitering at this pose, in that order: (kind,
+        outcome, detail, stall cause) of the first that fires, else None."""
+        cfg = self.cfg
+        if stall_cause is not None:
+            return ("stall", "no_route" if stall_cause == "no_route" else "stall",
+                    f"stalled at ({x:.2f}, {y:.2f}) after {self.t:.1f} s: {stall_cause.replace('_', ' ')}", stall_cause)
+        if (to_goal := math.hypot(self.goal[0] - x, self.goal[1] - y)) <= cfg.goal_tolerance:
+            return ("none", "success", f"goal reached in {self.t:.1f} s ({to_goal:.2f} m from it; "
+                    f"goal tolerance {cfg.goal_tolerance:g} m)", None)
+        if self.t >= cfg.stall_time - 1e-9:
+            n = len(self._window)
+            cx, cy = self._sum[0] / n, self._sum[1] / n
+            if math.hypot(x - cx, y - cy) < cfg.stall_radius and self._window_path < 1e-6:
+                cause = "no_route" if self.no_route else "stationary"
+                return ("stall", "no_route" if self.no_route else "stall",
+                        f"stalled at ({x:.2f}, {y:.2f}): no motion for {cfg.stall_time:g} s (after {self.t:.1f} s)"
+                        + ("; no route" if self.no_route else ""), cause)
+            if math.hypot(x - cx, y - cy) < cfg.stall_radius:
+                return ("loiter", "loiter", f"loitering within {cfg.stall_radius:g} m of ({cx:.2f}, {cy:.2f}) "
+                        f"for {cfg.stall_time:g} s (after {self.t:.1f} s)", None)
+        return None
+
+    def early_verdict(self) -> dict[str, Any]:
+        """What the early monitors said: their first verdict; else the collision or the time limit
+        that both kinds of verdict share; else ``undecided`` (the stack decided first)."""
+        e = self.early
+        if e is None and self.kind in ("collision", "timeout"):
+            e = {"kind": self.kind, "detail": self.detail, "time": self.t}
+        elif e is None:
+            e = {"kind": "undecided", "detail": f"no early verdict in {self.t:.1f} s", "time": None}
+        return {"early_verdict": e["kind"], "early_detail": e["detail"], "early_time": e["time"]}
 
     def metrics(self) -> dict[str, Any]:
         return {
@@ -344,6 +379,8 @@ class RobotMonitors:
             "unsafe_proximity_s": self.proximity_time,
             "waypoints_reached": self.waypoints_reached,
             "goal_tolerance": self.cfg.goal_tolerance,
+            "early_verdicts": self.early_verdicts,
+            **self.early_verdict(),
         }
 
 

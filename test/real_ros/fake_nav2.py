@@ -1,10 +1,11 @@
 """A stand-in for Nav2's bt_navigator: a typed ``navigate_to_pose`` action server (rclpy, nav2_msgs).
 
-Run under the ROS python: ``python3 fake_nav2.py GOAL_TOPIC``. Each accepted goal is printed
-(``goal x y frame``), forwarded as ``geometry_msgs/PoseStamped`` on GOAL_TOPIC (where
+Run under the ROS python: ``python3 fake_nav2.py GOAL_TOPIC [abort]``. Each accepted goal is
+printed (``goal x y frame``), forwarded as ``geometry_msgs/PoseStamped`` on GOAL_TOPIC (where
 ``external_sim`` drives the robot, as Nav2's planner + controller would), and succeeds after one
-feedback message, so the adapter sees a real action round trip while the verdict still comes from
-odometry.
+feedback message, so the adapter sees a real action round trip (with ``early_verdicts`` the
+verdict still comes from odometry). With ``abort`` it aborts every goal instead, with Nav2's
+error code 102 and a message, as Nav2 does when its controller gives up.
 """
 import sys
 import time
@@ -29,8 +30,13 @@ def main() -> int:
         feedback.current_pose = pose
         goal_handle.publish_feedback(feedback)
         time.sleep(0.2)
+        result = NavigateToPose.Result()
+        if sys.argv[2:3] == ["abort"]:
+            result.error_code, result.error_msg = 102, "fake: the controller failed to make progress"
+            goal_handle.abort()
+            return result
         goal_handle.succeed()
-        return NavigateToPose.Result()
+        return result
 
     ActionServer(node, NavigateToPose, "navigate_to_pose", execute)
     print("navigate_to_pose ready", flush=True)

@@ -57,7 +57,7 @@ from ament_index_python.packages import get_packages_with_prefixes
 pkgs = get_packages_with_prefixes()
 print(json.dumps({{"rclpy": rclpy.__file__, "python": list(sys.version_info[:2]), "executable": sys.executable,
                   "distro": __import__("os").environ.get("ROS_DISTRO", ""),
-                  "packages": sorted(p for p in pkgs if p.startswith(("rmw_", "nav2_", "dwb_", "rosbag2_storage_mcap", "ros2bag", "sros2")))}}))
+                  "packages": sorted(p for p in pkgs if p.startswith(("rmw_", "nav2_", "dwb_", "opennav_", "rosbag2_storage_mcap", "ros2bag", "sros2")))}}))
 """
 
 

@@ -9,7 +9,11 @@ Skipped, naming why, unless the install sourced by the real-ROS suite has those 
   and the trap (test/data/nav2_trap_map.json: a route longer than NavFn extracts) must fail it
   without a plan;
 * ``ros2 launch ambiegen_ros nav2_campaign.launch.py`` ends by itself with every scenario answered,
-  its log a robot bag (``/scan``, ``/odom``, ``/tf``, ``/cmd_vel``, ``/plan`` counted by rosbags).
+  its log a robot bag (``/scan``, ``/odom``, ``/tf``, ``/cmd_vel``, ``/plan`` counted by rosbags);
+* a Nav2 user's way: Jazzy's own ``nav2_bringup`` params (MPPI) with our overlay, started by the
+  user's own ``navigation_launch.py`` (``nav2:=external``, the two documented commands) and by the
+  all-in-one launch (``nav2:=bringup``); Nav2's own result decides, the early verdict beside it;
+* two stacks at once (``stacks:=2``), each in its namespace on its own world's clock.
 """
 from __future__ import annotations
 
@@ -27,7 +31,7 @@ for extra in (REPO / "test", REPO / "test" / "sims"):
         sys.path.insert(0, str(extra))
 
 from jazzy_env import require, ros_args, ros_env, venv_env  # noqa: E402
-from test_real_jazzy import answered, rosbags_counts  # noqa: E402
+from test_real_jazzy import answered, result_workers, rosbags_counts  # noqa: E402
 
 from ambiegen_ros import launch_logic  # noqa: E402
 from ambiegen_ros.problems import get_problem  # noqa: E402
@@ -35,6 +39,9 @@ from ambiegen_ros.ros.runlog import summarize  # noqa: E402
 
 NAV2 = ("nav2_msgs", "nav2_bt_navigator", "nav2_controller", "nav2_planner", "nav2_behaviors", "nav2_lifecycle_manager",
         "nav2_navfn_planner", "dwb_core")
+# what Jazzy's navigation_launch.py starts, and Jazzy's default controller
+BRINGUP = NAV2 + ("nav2_bringup", "nav2_smoother", "nav2_velocity_smoother", "nav2_collision_monitor",
+                  "nav2_waypoint_follower", "opennav_docking", "nav2_mppi_controller")
 TIME_SCALE = 2.0
 SMALL_CONFIG = REPO / "config" / "robot_small.yaml"  # a run of about a minute instead of four (goal (14, 14))
 TRAP = REPO / "test" / "data" / "nav2_trap_map.json"
@@ -129,10 +136,86 @@ def test_nav2_campaign_launch_ends_by_itself(jazzy, workspace, graph, tmp_path, 
         f"{k}:={v}" for k, v in dict(evaluations=20, seed=1, output_dir=tmp_path, time_scale=TIME_SCALE,
                                      config_file=config, profile="refined").items()), workspace, env)
     assert g.wait("launch", 1800) == 0, g.logs()
+    mcap, _ = answered_campaign(tmp_path)
+    assert os.path.exists(mcap.with_name(mcap.stem + ".nav2_params.yaml"))
+
+
+def jazzy_params(jazzy) -> Path:
+    """Jazzy's own nav2_bringup/params/nav2_params.yaml, as the install ships it (MPPI + NavFn)."""
+    path = Path(jazzy["setup"]).parent / "share" / "nav2_bringup" / "params" / "nav2_params.yaml"
+    if not path.is_file():
+        pytest.skip(f"{path} is not in the install (nav2_bringup's params)")
+    return path
+
+
+def answered_campaign(tmp_path: Path) -> tuple[Path, dict]:
+    """The one log a finished campaign left, every scenario answered, a robot bag."""
     (mcap,) = tmp_path.glob("*.mcap")
     summary = summarize(mcap)
     assert summary["scenarios_published"] > 0 and not summary["unresolved"], summary
     counts = rosbags_counts(mcap)
     for topic in ("/scan", "/odom", "/tf", "/cmd_vel", "/map"):
         assert counts.get(topic, 0) > 0, (topic, counts)
-    assert os.path.exists(mcap.with_name(mcap.stem + ".nav2_params.yaml"))
+    return mcap, summary
+
+
+def result_metrics(mcap: Path) -> list[dict]:
+    from ambiegen_ros.nodes.replay import recorded_scenarios
+
+    outcomes = recorded_scenarios(mcap).outcomes
+    return [dict(o.metrics, failure_kind=o.failure_kind) for o in outcomes.values()]
+
+
+def test_bring_your_own_nav2_the_two_documented_commands(jazzy, workspace, graph, tmp_path, ros_domain):
+    """docs/external_sut.md, "Bring your own Nav2": the user's Nav2 (navigation_launch.py with
+    Jazzy's params + our overlay) and our side (nav2:=external); the campaign ends by itself."""
+    require(jazzy, *BRINGUP)
+    theirs, merged = jazzy_params(jazzy), tmp_path / "nav2_for_ambiegen.yaml"
+    g, env = graph(), ros_env(ros_domain)
+    g.ros("nav2", f"ros2 run ambiegen_ros ambiegen nav2-params {theirs} --time-scale {TIME_SCALE:g} -o {merged} && "
+                  f"ros2 launch nav2_bringup navigation_launch.py use_sim_time:=true params_file:={merged}",
+          workspace, env)
+    g.ros("launch", "ros2 launch ambiegen_ros nav2_campaign.launch.py nav2:=external " + " ".join(
+        f"{k}:={v}" for k, v in dict(params_file=theirs, evaluations=6, seed=2, output_dir=tmp_path,
+                                     time_scale=TIME_SCALE, config_file=SMALL_CONFIG, profile="refined").items()),
+        workspace, env)
+    assert g.wait("launch", 2400) == 0, g.logs()
+    g.stop("nav2")
+    mcap, _ = answered_campaign(tmp_path)
+    rows = result_metrics(mcap)
+    assert rows and all(r.get("early_verdicts") is False for r in rows if "early_verdicts" in r), rows
+    assert any(r.get("nav2_status") == "succeeded" for r in rows), rows  # Nav2's own word decided some run
+    print("byo nav2:", [(r["failure_kind"], r.get("nav2_status"), r.get("early_verdict")) for r in rows])
+
+
+def test_jazzy_defaults_mppi_all_in_one_launch(jazzy, workspace, graph, tmp_path, ros_domain):
+    """nav2:=bringup: nav2_bringup's navigation_launch.py with Jazzy's params (MPPI) + overlay."""
+    require(jazzy, *BRINGUP)
+    g, env = graph(), ros_env(ros_domain)
+    g.ros("launch", "ros2 launch ambiegen_ros nav2_campaign.launch.py nav2:=bringup " + " ".join(
+        f"{k}:={v}" for k, v in dict(params_file=jazzy_params(jazzy), evaluations=6, seed=3, output_dir=tmp_path,
+                                     time_scale=TIME_SCALE, config_file=SMALL_CONFIG, profile="refined").items()),
+        workspace, env)
+    assert g.wait("launch", 2400) == 0, g.logs()
+    mcap, _ = answered_campaign(tmp_path)
+    assert "MPPIController" in mcap.with_name(mcap.stem + ".nav2_params.yaml").read_text()
+    rows = result_metrics(mcap)
+    assert all("early_verdict" in r for r in rows if r["failure_kind"] not in ("invalid", "invalid_test")), rows
+    print("mppi:", [(r["failure_kind"], r.get("nav2_status"), r.get("early_verdict")) for r in rows])
+
+
+def test_two_stacks_share_one_generator_and_one_recorder(jazzy, workspace, graph, tmp_path, ros_domain):
+    require(jazzy, *NAV2)
+    g, env = graph(), ros_env(ros_domain)
+    g.ros("launch", "ros2 launch ambiegen_ros nav2_campaign.launch.py stacks:=2 " + " ".join(
+        f"{k}:={v}" for k, v in dict(evaluations=6, seed=4, output_dir=tmp_path, time_scale=1.0,
+                                     config_file=SMALL_CONFIG, profile="refined").items()), workspace, env)
+    assert g.wait("launch", 2400) == 0, g.logs()
+    (mcap,) = tmp_path.glob("*.mcap")
+    summary = summarize(mcap)
+    assert summary["scenarios_published"] > 0 and not summary["unresolved"], summary
+    workers = set(result_workers(mcap, summary["run_id"]).values())
+    assert len(workers) == 2, workers  # both stacks answered scenarios
+    counts = rosbags_counts(mcap)
+    for ns in ("stack0", "stack1"):
+        assert counts.get(f"/{ns}/odom", 0) > 0 and counts.get(f"/{ns}/scan", 0) > 0, counts

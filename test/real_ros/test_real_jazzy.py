@@ -363,27 +363,37 @@ def test_sut_adapter_against_external_sim_on_rclpy(workspace, graph, tmp_path, r
         assert outcomes[sid].failure_kind == ref.failure_kind, (sid, outcomes[sid].detail, ref.detail)
 
 
-def test_sut_adapter_nav2_action_mode_against_a_fake_navigate_to_pose(jazzy, workspace, graph, monkeypatch, ros_domain):
-    """goal_mode:=action: the goal goes out as a nav2_msgs NavigateToPose goal to a typed rclpy
-    action server standing in for Nav2, which hands it to external_sim; odometry gives the verdict."""
+def fake_nav2_graph(jazzy, workspace, graph, monkeypatch, ros_domain, *fake_args: str, **adapter: Any):
+    """A fake navigate_to_pose server (``fake_nav2.py``) driving external_sim, the adapter in
+    action mode against it, and this process on the DDS backend in the same domain."""
     if "nav2_msgs" not in jazzy["packages"]:
         pytest.skip("nav2_msgs is not in the install: the adapter imports nav2_msgs.action.NavigateToPose "
                     "(sim_nodes/sut_adapter.py), so no typed navigate_to_pose server can stand in for Nav2")
-    from test_adapter import PROFILE, Driver, easy_robot_elements, scenario  # the DDS-backend driver of test/ros
+    from test_adapter import PROFILE  # the DDS-backend driver of test/ros
 
-    domain = ros_domain
-    g, env = graph(), ros_env(domain)
+    g, env = graph(), ros_env(ros_domain)
     common = dict(problem="robot", profile=PROFILE["robot"], time_scale=150.0)
-    g.ros("fake_nav2", f"{jazzy['executable']} {HERE / 'fake_nav2.py'} /fake_nav2/goal_pose", workspace, env)
+    g.ros("fake_nav2", " ".join([jazzy["executable"], str(HERE / "fake_nav2.py"), "/fake_nav2/goal_pose", *fake_args]),
+          workspace, env)
     g.ros("external", f"ros2 run ambiegen_ros external_sim {ros_args(goal_topic='/fake_nav2/goal_pose', **common)}",
           workspace, env)
     # the fake is no lifecycle node and has no costmaps: no readiness check of those, nothing to clear
     g.ros("adapter", "ros2 run ambiegen_ros sut_adapter " + ros_args(
-        worker_id="sut", goal_mode="action", nav2_lifecycle_nodes="''", nav2_clear_costmaps="''", **common),
+        worker_id="sut", goal_mode="action", nav2_lifecycle_nodes="''", nav2_clear_costmaps="''", **adapter, **common),
         workspace, env)
     g.wait_for("fake_nav2", "navigate_to_pose ready", 60)
-    for key, value in venv_env(domain).items():
+    for key, value in venv_env(ros_domain).items():
         monkeypatch.setenv(key, value)
+    return g
+
+
+def test_sut_adapter_nav2_action_mode_against_a_fake_navigate_to_pose(jazzy, workspace, graph, monkeypatch, ros_domain):
+    """goal_mode:=action: the goal goes out as a nav2_msgs NavigateToPose goal to a typed rclpy
+    action server standing in for Nav2, which hands it to external_sim; with early_verdicts
+    odometry gives the verdict."""
+    g = fake_nav2_graph(jazzy, workspace, graph, monkeypatch, ros_domain, early_verdicts=True)
+    from test_adapter import PROFILE, Driver, easy_robot_elements, scenario
+
     from ambiegen_ros.ros.transport import create_node
 
     node = create_node("nav2_test_driver", argv=[])
@@ -408,3 +418,30 @@ def test_sut_adapter_nav2_action_mode_against_a_fake_navigate_to_pose(jazzy, wor
                                                                       pytest.approx(goal.y, abs=1e-6), "map")
     g.wait_for("adapter", "navigate_to_pose finished: succeeded", 30)
     assert res.metrics["nav2_status"] in ("succeeded", "running (cancelled: the oracle decided first)")
+
+
+def test_sut_adapter_takes_nav2s_own_abort_as_the_verdict(jazzy, workspace, graph, monkeypatch, ros_domain):
+    """goal_mode:=action with its default ``early_verdicts:=false``: Nav2's own result decides. A
+    navigate_to_pose server that aborts (error 102) gives FAIL(nav2_aborted) with the code and
+    message (the easy map has a clearance route: a failure, not an invalid test), and the early
+    verdict is recorded beside it."""
+    g = fake_nav2_graph(jazzy, workspace, graph, monkeypatch, ros_domain, "abort")
+    from test_adapter import PROFILE, Driver, easy_robot_elements, scenario
+
+    from ambiegen_ros.ros.transport import create_node
+
+    node = create_node("nav2_abort_driver", argv=[])
+    try:
+        problem = get_problem("robot", {"profile": PROFILE["robot"]})
+        driver = Driver(node, problem)
+        driver.wait_matched(timeout=60)
+        driver.send("abort", [scenario(problem, easy_robot_elements())])
+        (res,) = driver.wait("abort", 1, 90)
+    finally:
+        node.shutdown()
+    assert res is not None, g.logs()
+    assert res.failure_kind == "nav2_aborted" and res.failed, res.detail
+    assert "error 102" in res.detail and "failed to make progress" in res.detail
+    assert res.metrics["nav2_status"] == "aborted" and res.metrics["nav2_error_code"] == 102
+    assert res.metrics["decided_by"] == "stack" and res.metrics["early_verdicts"] is False
+    assert res.metrics["early_verdict"] in ("undecided", "none", "stall", "loiter")

@@ -161,7 +161,9 @@ def test_nav2_plan_starts_world_nav2_adapter_and_scales_nav2s_rates(tmp_path):
     assert adapter["goal_mode"] == "action" and adapter["time_scale"] == 4.0 and adapter["collision_topic"] == "/collision"
     assert world.parameters["time_scale"] == 4.0 and world.parameters["seed"] == 3 == p.seed
     assert generator["min_workers"] == 1 and generator["max_in_flight"] == 1
-    assert generator["result_timeout"] == pytest.approx(2 * 300 / 4 + 60)
+    # the adapter's guard for a 500 m route at the controller's 0.3 m/s (2 x route / speed + 60 s), + 60 s
+    assert generator["result_timeout"] == pytest.approx(2 * (2 * 500 / 0.3 + 60) / 4 + 120 + 60)
+    assert adapter["early_verdicts"] is False and adapter["time_limit_speed"] == 0.3  # DWB's max_vel_x
     assert "/scan" in p.node("recorder").parameters["extra_topics"].split(",")
     (scaled,) = {f for n in p.nodes for f in n.params_files}
     assert Path(scaled).parent == tmp_path and p.run_id in Path(scaled).name
@@ -191,12 +193,79 @@ def test_nav2_plan_takes_the_users_params_file_and_names_a_bad_one(tmp_path):
         launch_logic.plan_nav2_campaign({"output_dir": str(tmp_path), "time_scale": "0"}, share_dir=str(REPO))
 
 
+def test_nav2_external_starts_only_our_side_and_bringup_includes_navigation_launch(tmp_path):
+    import yaml
+
+    theirs = tmp_path / "theirs.yaml"
+    theirs.write_text("controller_server:\n  ros__parameters:\n    controller_frequency: 20.0\n"
+                      "    controller_plugins: [FollowPath]\n    FollowPath:\n"
+                      "      plugin: nav2_mppi_controller::MPPIController\n      vx_max: 0.5\n      ax_max: 3.0\n"
+                      "      ax_min: -3.0\n      az_max: 3.5\n")
+    common = {"output_dir": str(tmp_path), "params_file": str(theirs), "seed": "2", "time_scale": "2"}
+    external = launch_logic.plan_nav2_campaign({**common, "nav2": "external"}, share_dir=str(REPO))
+    assert [n.name for n in external.nodes] == ["recorder", "robot_world", "sut_adapter", "generator"]
+    assert not external.includes
+    adapter = external.node("sut_adapter").parameters
+    assert adapter["start_timeout"] == launch_logic.EXTERNAL_START_TIMEOUT and adapter["time_limit_speed"] == 0.5
+    assert adapter["early_verdicts"] is False
+    merged = yaml.safe_load(external.nav2_params.read_text())
+    follow = merged["controller_server"]["ros__parameters"]["FollowPath"]
+    assert follow["ax_max"] == 0.5 and merged["controller_server"]["ros__parameters"]["controller_frequency"] == 40.0
+    assert any(f"params_file:={external.nav2_params}" in note for note in external.notes)
+    bringup = launch_logic.plan_nav2_campaign({**common, "nav2": "bringup", "early_verdicts": "true"},
+                                              share_dir=str(REPO))
+    assert [n.name for n in bringup.nodes] == ["recorder", "robot_world", "sut_adapter", "generator"]
+    (include,) = bringup.includes
+    assert (include.package, include.launch_file) == ("nav2_bringup", "launch/navigation_launch.py")
+    assert include.arguments["params_file"] == str(bringup.nav2_params) and include.arguments["use_sim_time"] == "true"
+    assert bringup.node("sut_adapter").parameters["early_verdicts"] is True
+    plain = launch_logic.plan_nav2_campaign({**common, "params_overlay": "none"}, share_dir=str(REPO))
+    assert "ax_max: 3.0" in plain.nav2_params.read_text()  # no overlay: theirs as it is
+    with pytest.raises(ValueError, match="nav2: unknown"):
+        launch_logic.plan_nav2_campaign({**common, "nav2": "mine"}, share_dir=str(REPO))
+    with pytest.raises(ValueError, match="early_verdicts"):
+        launch_logic.plan_nav2_campaign({**common, "early_verdicts": "maybe"}, share_dir=str(REPO))
+
+
+def test_nav2_stacks_each_get_a_namespace_a_clock_and_params_of_their_own(tmp_path):
+    import yaml
+
+    p = launch_logic.plan_nav2_campaign({"output_dir": str(tmp_path), "seed": "4", "stacks": "2", "time_scale": "2"},
+                                        share_dir=str(REPO))
+    assert p.workers == 2
+    generator = p.node("generator").parameters
+    assert (generator["min_workers"], generator["min_subscribers"], generator["max_in_flight"]) == (2, 3, 1)
+    for i in (0, 1):
+        ns = f"stack{i}"
+        world = p.node(f"{ns}/robot_world")
+        assert world.namespace == ns and world.parameters["clock_topic"] == f"/{ns}/clock"
+        assert world.parameters["scan_topic"] == f"/{ns}/scan" and world.parameters["odom_topic"] == f"/{ns}/odom"
+        controller = p.node(f"{ns}/controller_server")
+        assert ("/clock", f"/{ns}/clock") in controller.remappings and ("/tf", "tf") in controller.remappings
+        (params_file,) = controller.params_files
+        params = yaml.safe_load(Path(params_file).read_text())[ns]
+        global_costmap = params["global_costmap"]["global_costmap"]["ros__parameters"]
+        assert global_costmap["obstacle_layer"]["scan"]["topic"] == f"/{ns}/scan"
+        assert global_costmap["static_layer"]["map_topic"] == f"/{ns}/map"
+        assert params["bt_navigator"]["ros__parameters"]["odom_topic"] == f"/{ns}/odom"
+        adapter = p.node(f"sut_adapter_{ns}").parameters
+        assert adapter["action_name"] == f"/{ns}/navigate_to_pose" and adapter["map_topic"] == f"/{ns}/map"
+        assert adapter["nav2_lifecycle_nodes"].split(",")[0] == f"{ns}/planner_server"
+        assert adapter["nav2_clear_costmaps"].startswith(f"/{ns}/global_costmap/")
+    workers = [n.parameters["worker_id"] for n in p.nodes if n.executable == "sut_adapter"]
+    assert len(set(workers)) == 2
+    assert "/stack1/scan" in p.node("recorder").parameters["extra_topics"].split(",")
+    with pytest.raises(ValueError, match="stacks"):
+        launch_logic.plan_nav2_campaign({"output_dir": str(tmp_path), "stacks": "2", "nav2": "bringup"},
+                                        share_dir=str(REPO))
+
+
 def test_nav2_launch_file_takes_its_logic_from_the_plan():
     tree = ast.parse((REPO / "launch" / "nav2_campaign.launch.py").read_text())
     imported = [a.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
                 and node.module == "ambiegen_ros.launch_logic" for a in node.names]
     assert {"NAV2_LAUNCH_ARGUMENTS", "plan_nav2_campaign"} <= set(imported)
-    for needed in ("params_file", "time_scale", "overwrite", "output"):
+    for needed in ("params_file", "time_scale", "overwrite", "output", "nav2", "params_overlay", "early_verdicts"):
         assert needed in launch_logic.NAV2_LAUNCH_ARGUMENTS
 
 

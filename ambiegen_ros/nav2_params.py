@@ -1,0 +1,148 @@
+"""A Nav2 parameter file for AmbieGen's world: the user's own params, our overlay on top, loop rates scaled.
+
+A Nav2 user keeps their bringup and their robot's params file. What our world needs from Nav2
+is small and lives in an overlay (``config/nav2/ambiegen_overlay.yaml``): the frames robot_world
+publishes, the pioneer's footprint, laser returns of +inf as free space, the base's acceleration
+limits. ``merged_params`` lays it over theirs; ``scale_nav2_rates`` makes Jazzy's wall-clock loops
+keep pace with a world running ``time_scale`` times faster than real time. ``ambiegen nav2-params``
+writes the result for ``ros2 launch nav2_bringup navigation_launch.py params_file:=...``, and
+``nav2_campaign.launch.py`` does the same for the Nav2 it starts itself.
+
+Overlay keys merge into the user's mappings key by key. A key that begins with ``*`` is a
+pattern: its mapping is merged into every mapping at that level that already has all of the
+pattern's own keys, so ``"*scan": {scan: {inf_is_valid: true}}`` reaches each costmap layer with a
+``scan`` source whatever the user named the layer, and ``"*mppi": {ax_max: ..., ax_min: ...}``
+reaches an MPPI controller and nothing else.
+"""
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+from typing import Any
+
+OVERLAY_FILE = ("config", "nav2", "ambiegen_overlay.yaml")  # under the package's share dir (or the repo)
+RATES = {  # parameter name -> "rate" (multiplied by k) | "period" (divided by k)
+    "controller_frequency": "rate", "expected_planner_frequency": "rate", "update_frequency": "rate",
+    "publish_frequency": "rate", "cycle_frequency": "rate", "bt_loop_duration": "period",
+    "smoothing_frequency": "rate",
+}
+SPEED_KEYS = ("max_vel_x", "max_speed_xy", "vx_max")  # DWB, DWB, MPPI / others: the controller's top speed
+
+
+def scale_nav2_rates(params: Any, k: float) -> Any:
+    """A Nav2 parameter tree with every loop rate multiplied by ``k`` (and loop periods divided):
+    Jazzy's controller, planner, costmap, smoother and behaviour-tree loops run on wall-clock
+    rates, so a world ``k`` times faster than real time needs them ``k`` times faster too.
+    Timeouts stay: they count in sim time (``use_sim_time``)."""
+    if isinstance(params, dict):
+        out = {}
+        for key, value in params.items():
+            kind = RATES.get(key)
+            if kind and isinstance(value, (int, float)) and not isinstance(value, bool):
+                value = value * k if kind == "rate" else max(1, int(round(value / k)))
+            out[key] = scale_nav2_rates(value, k)
+        return out
+    return params
+
+
+def merge_overlay(base: Any, overlay: Any) -> Any:
+    """``base`` with ``overlay`` merged in (a new tree; see the module docstring for ``*`` keys)."""
+    if not isinstance(base, dict) or not isinstance(overlay, dict):
+        return copy.deepcopy(overlay)
+    out = copy.deepcopy(base)
+    for key, value in overlay.items():
+        if isinstance(key, str) and key.startswith("*"):
+            if not isinstance(value, dict):
+                raise ValueError(f"overlay pattern {key!r}: must be a mapping")
+            for name, child in out.items():
+                if isinstance(child, dict) and all(k in child for k in value):
+                    out[name] = merge_overlay(child, value)
+        else:
+            out[key] = merge_overlay(out.get(key), value)
+    return out
+
+
+def top_speed(params: dict) -> float | None:
+    """The controller's top forward speed [m/s] from a Nav2 params tree (the largest of its
+    controller plugins' ``max_vel_x`` / ``max_speed_xy`` / ``vx_max``), None if it names none."""
+    server = (params.get("controller_server") or {}).get("ros__parameters") or {}
+    speeds = []
+    for plugin in server.get("controller_plugins") or []:
+        section = server.get(plugin) or {}
+        speeds += [float(section[k]) for k in SPEED_KEYS if isinstance(section.get(k), (int, float))]
+    return max(speeds) if speeds else None
+
+
+WORLD_TOPICS = ("/scan", "/odom", "/map", "/cmd_vel")  # robot_world's, named absolutely in Nav2 params
+
+
+def for_namespace(params: dict, namespace: str) -> dict:
+    """The params of a Nav2 run in ``namespace`` (one of several stacks on one host): nested under
+    it, as ROS parameter files address namespaced nodes, with robot_world's topics that the file
+    names absolutely (``/scan``, ``/odom``, ...) and every static layer's map moved into it."""
+    ns = "/" + namespace.strip("/")
+
+    def walk(value: Any) -> Any:
+        if isinstance(value, dict):
+            out = {k: walk(v) for k, v in value.items()}
+            if out.get("plugin") == "nav2_costmap_2d::StaticLayer":
+                out["map_topic"] = f"{ns}/map"
+            return out
+        if isinstance(value, list):
+            return [walk(v) for v in value]
+        return f"{ns}{value}" if isinstance(value, str) and value in WORLD_TOPICS else value
+
+    return {namespace.strip("/"): walk(params)}
+
+
+def package_file(*parts: str) -> Path | None:
+    """A file the package ships under ``share/ambiegen_ros`` (a colcon or pip install) or in its
+    source checkout; None where neither has it."""
+    import os
+    import sys
+
+    roots = [Path(__file__).resolve().parents[1]]  # a source checkout / editable install
+    roots += [Path(prefix) / "share" / "ambiegen_ros"
+              for prefix in [sys.prefix, *os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep)] if prefix]
+    for root in roots:
+        if (root / Path(*parts)).is_file():
+            return root / Path(*parts)
+    return None
+
+
+def load_yaml(path: str | Path, what: str) -> dict:
+    """A YAML mapping from ``path``; ``ValueError`` naming ``what`` and the reason otherwise."""
+    import yaml
+
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise ValueError(f"{what}: cannot read {path}: {exc}") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{what}: {path} is not a YAML mapping")
+    return data
+
+
+def merged_params(params_file: str | Path, overlay_file: str | Path | None, time_scale: float) -> dict:
+    """The user's params, the overlay merged on (None: none), rates x ``time_scale``."""
+    params = load_yaml(params_file, "params_file")
+    if overlay_file:
+        params = merge_overlay(params, load_yaml(overlay_file, "params_overlay"))
+    return scale_nav2_rates(params, time_scale)
+
+
+def write_params(params: dict, out: str | Path, header: str, overwrite: bool = False) -> Path:
+    """Write a params tree; an existing file is refused (``FileExistsError``) unless ``overwrite``."""
+    import yaml
+
+    out = Path(out)
+    if out.exists() and not overwrite:
+        raise FileExistsError(f"{out} exists (not overwritten)")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    text = "".join(f"# {line}\n" for line in header.splitlines()) + yaml.safe_dump(params, sort_keys=False)
+    out.write_text(text)
+    return out
+
+
+__all__ = ["OVERLAY_FILE", "RATES", "WORLD_TOPICS", "for_namespace", "load_yaml", "package_file", "merge_overlay", "merged_params", "scale_nav2_rates", "top_speed",
+           "write_params"]

@@ -1,0 +1,284 @@
+"""One robot scenario's streams out of a robot bag: what ``ambiegen show RUN.mcap --scenario ID`` animates.
+
+A robot bag is a run's MCAP that also holds the robot's own topics (``ambiegen campaign --stack
+nd`` records them): ``/odom``, ``/scan``, ``/plan``, ``/tf``. Only the log's first run counts
+(as ``nodes.replay.recorded_scenarios`` reads it). A scenario's stretch of the bag is found by log
+time: it ends at its result on ``/ambiegen/results``, and starts at the last ``/initialpose``
+(else ``/goal_pose``, ``/map``) logged between its scenario message and that result, else at the
+scenario message (one system under test runs one scenario at a time, so that is its set-up).
+Within it every stream is put on one clock, the messages' header stamps: simulated seconds for a
+simulator in lockstep, whose run goes faster than the log's wall clock.
+
+Poses are turned into the map frame with ``/tf``'s ``map -> <odom frame>`` (identity when absent)
+and each scan into map-frame beam ends from the pose at its stamp and ``/tf_static``'s sensor
+offset, so the drawing side needs no ROS. Samples from before the robot is shown at the
+scenario's start (a world still showing the last run) are dropped, as ``sut_adapter`` ignores them.
+"""
+from __future__ import annotations
+
+import bisect
+import math
+import struct
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..core.errors import BadInput
+from ..sims.outcome import Outcome
+from . import topics
+from .conversions import grid_from_message, outcome_from_message, path_points, safe_echo, stamp_ns, yaw_of
+from .runlog import iter_messages
+
+ROBOT_SCENARIOS = topics.scenarios("robot")
+ODOM, SCAN, PLAN, TF, TF_STATIC = "/odom", "/scan", "/plan", "/tf", "/tf_static"
+SETUP_TOPICS = ("/initialpose", "/goal_pose", "/map")  # what starts a scenario on the stack, most telling first
+START_TOLERANCE = 0.5  # a pose this close to the scenario's start shows the new run [m] (sut_adapter's default)
+
+
+@dataclass
+class ScenarioEntry:
+    """A scenario of the bag's first run, as listed: id, verdict and its stretch of log time."""
+
+    scenario_id: int
+    outcome: Outcome | None  # None: no result logged
+    start_ns: int  # log time of its set-up (see the module docstring)
+    end_ns: int  # log time of its result (of the bag's last message when there is none)
+    goal_ns: int | None = None  # log time of its goal on /goal_pose, when logged
+
+    @property
+    def verdict(self) -> str:
+        """PASS, FAIL(kind), ... on one line (a logged detail may hold anything)."""
+        return "NO RESULT" if self.outcome is None else " ".join(self.outcome.verdict.split())
+
+
+@dataclass
+class BagIndex:
+    """The light pass over a bag: run id, its scenarios in id order, where the bag starts, which topics it has."""
+
+    path: Path
+    run_id: str  # as it may be echoed (``conversions.safe_echo``)
+    entries: dict[int, ScenarioEntry]
+    scenario_msgs: dict[int, Any]  # the first scenario message of each id
+    bag_start_ns: int
+    topic_counts: dict[str, int]
+
+
+@dataclass
+class RobotRun:
+    """One scenario's streams, in the map frame, on the stamps' clock (``t`` in s from the first pose).
+
+    ``poses`` is (N, 4): t, x, y, yaw; ``scans`` and ``plans`` are (t, (K, 2) points) in stamp
+    order; ``grid`` is bool [y, x] (walls), cell (0, 0) at ``origin``."""
+
+    entry: ScenarioEntry
+    run_id: str
+    grid: np.ndarray
+    resolution: float
+    origin: tuple[float, float]
+    start: tuple[float, float] | None
+    goal: tuple[float, float] | None
+    poses: np.ndarray
+    scans: list[tuple[float, np.ndarray]] = field(default_factory=list)
+    plans: list[tuple[float, np.ndarray]] = field(default_factory=list)
+    dropped_before_start: int = 0  # poses of the last run still shown at the start of the stretch
+    t_goal: float = 0.0  # when the goal was given: the first pose logged after it (the adapter's t = 0)
+
+    @property
+    def t_verdict(self) -> float | None:
+        """When the verdict fell on this clock: the goal's time + the result's ``time`` metric (None: unknown)."""
+        try:
+            t = self.t_goal + float((self.entry.outcome.metrics or {})["time"])
+        except (AttributeError, KeyError, TypeError, ValueError):
+            return None
+        return t if math.isfinite(t) else None
+
+
+def read_index(path: str | Path) -> BagIndex:
+    """Scenarios, results and set-up messages of the bag's first robot run (one light pass).
+
+    Raises ``BadInput`` (one line) for a file that is not an MCAP or holds no robot scenario."""
+    from mcap.exceptions import McapError
+
+    path = Path(path)
+    if not path.is_file():
+        raise BadInput(f"{path}: no such file")
+    run_id = ""
+    scenario_ns: dict[int, int] = {}
+    scenario_msgs: dict[int, Any] = {}
+    results: dict[tuple[str, int], tuple[int, Any]] = {}  # (run id, scenario id) -> (log time, message)
+    setups: list[tuple[int, str]] = []
+    other_problems: set[str] = set()
+    wanted = {ROBOT_SCENARIOS, topics.RESULTS, *SETUP_TOPICS} | {topics.scenarios(p) for p in topics.SCENARIO_TYPES}
+    try:
+        counts, first_ns, last_ns = bag_summary(path)
+        for topic, _, log_ns, msg in _messages(path, wanted & set(counts)):
+            if topic == ROBOT_SCENARIOS:
+                run_id = run_id or msg.meta.run_id
+                sid = int(msg.meta.scenario_id)
+                if msg.meta.run_id == run_id and sid not in scenario_msgs:
+                    scenario_ns[sid], scenario_msgs[sid] = log_ns, msg
+            elif topic == topics.RESULTS:
+                results.setdefault((msg.run_id, int(msg.scenario_id)), (log_ns, msg))
+            elif topic in SETUP_TOPICS:
+                setups.append((log_ns, topic))
+            else:
+                other_problems.add(topic.split("/")[2])
+    except (McapError, OSError, ValueError, KeyError, IndexError, EOFError, struct.error) as exc:  # not an MCAP
+        raise BadInput(f"{path}: not a readable MCAP log ({type(exc).__name__}: {exc}; a log cut short by a "
+                       "killed recorder: `ambiegen recover` rebuilds it)") from None
+    if not scenario_msgs:
+        what = f"a {'/'.join(sorted(other_problems))} run" if other_problems else "no scenario messages"
+        raise BadInput(f"{path}: not a robot bag ({what}; nothing on {ROBOT_SCENARIOS})")
+    entries = {}
+    for sid in sorted(scenario_msgs):
+        logged = results.get((run_id, sid))
+        end = logged[0] if logged else last_ns
+        start = scenario_ns[sid]
+        for name in SETUP_TOPICS:  # the last set-up of this scenario, most telling topic first
+            found = [t for t, topic in setups if topic == name and start <= t < end]
+            if found:
+                start = found[-1]
+                break
+        goals = [t for t, topic in setups if topic == "/goal_pose" and start <= t < end]
+        entries[sid] = ScenarioEntry(sid, outcome_from_message(logged[1]) if logged else None, start, end,
+                                     goals[-1] if goals else None)
+    return BagIndex(path, safe_echo(run_id), entries, scenario_msgs, first_ns, counts)
+
+
+def _messages(path: Path, names: set[str], start_ns: int | None = None, end_ns: int | None = None):
+    """``runlog.iter_messages`` of these topics only: none named reads nothing (not the whole bag)."""
+    return iter_messages(path, names, start_ns, end_ns) if names else iter(())
+
+
+def bag_summary(path: Path) -> tuple[dict[str, int], int, int]:
+    """Messages per topic and the log times of the first and last message, from the summary (a bag
+    without one, as a killed recorder leaves it: by reading it once, undecoded)."""
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as fh:
+        reader = make_reader(fh)
+        summary = reader.get_summary()
+        if summary is not None and summary.statistics is not None:
+            stats = summary.statistics
+            counts = {summary.channels[cid].topic: n for cid, n in stats.channel_message_counts.items()}
+            return counts, stats.message_start_time, stats.message_end_time
+        counts, first, last = {}, None, 0
+        for _, channel, message in reader.iter_messages(log_time_order=False):
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+            first = message.log_time if first is None else min(first, message.log_time)
+            last = max(last, message.log_time)
+        return counts, first or 0, last
+
+
+def read_run(index: BagIndex, scenario_id: int) -> RobotRun:
+    """The streams of one scenario (``BadInput``: no such id, or no ``/odom`` for it)."""
+    entry = index.entries.get(scenario_id)
+    if entry is None:
+        ids = list(index.entries)
+        shown = ", ".join(map(str, ids[:20])) + (", ..." if len(ids) > 20 else "")
+        raise BadInput(f"{index.path}: no scenario {scenario_id} in run {index.run_id} (ids: {shown})")
+    if not index.topic_counts.get(ODOM):
+        raise BadInput(f"{index.path}: no {ODOM} in the bag, nothing to animate (a campaign with --stack nd "
+                       "records the robot's topics)")
+    msg = index.scenario_msgs[scenario_id]
+    grid = grid_from_message(msg.map)
+    info = msg.map.info
+    start = (float(msg.start.pose.position.x), float(msg.start.pose.position.y))
+    goal = (float(msg.goal.pose.position.x), float(msg.goal.pose.position.y))
+    frames = Frames()
+    for _, _, _, tf in _messages(index.path, {TF_STATIC} & set(index.topic_counts)):
+        frames.add(tf, static=True)
+    odom: list[tuple[int, int, Any]] = []  # stamp, log time, message
+    scans: list[tuple[int, Any]] = []
+    plans: list[tuple[int, Any]] = []
+    wanted = {ODOM, SCAN, PLAN, TF} & set(index.topic_counts)
+    for topic, _, log_ns, m in _messages(index.path, wanted, entry.start_ns, entry.end_ns + 1):
+        if topic == TF:
+            frames.add(m)
+        elif topic == ODOM:
+            odom.append((stamp_ns(m.header), log_ns, m))
+        else:
+            (scans if topic == SCAN else plans).append((stamp_ns(m.header), m))
+    if not odom:
+        raise BadInput(f"{index.path}: no {ODOM} message while scenario {scenario_id} ran "
+                       f"(log time {entry.start_ns / 1e9:.3f}..{entry.end_ns / 1e9:.3f} s)")
+    odom.sort(key=lambda item: item[0])
+    poses = np.array([frames.in_map(m.header.frame_id or "map", stamp, m.pose.pose) for stamp, _, m in odom])
+    stamps = np.array([stamp for stamp, _, _ in odom], dtype=np.int64)
+    near = np.hypot(poses[:, 0] - start[0], poses[:, 1] - start[1]) <= START_TOLERANCE
+    first = int(np.argmax(near)) if near.any() else 0
+    poses, stamps, odom = poses[first:], stamps[first:], odom[first:]
+    t0 = int(stamps[0])
+    after_goal = [stamp for stamp, log_ns, _ in odom if entry.goal_ns is not None and log_ns >= entry.goal_ns]
+    body = odom[0][2].child_frame_id or "base_link"
+    run = RobotRun(entry, index.run_id, grid, float(info.resolution),
+                   (float(info.origin.position.x), float(info.origin.position.y)), start, goal,
+                   np.column_stack([(stamps - t0) / 1e9, poses]), dropped_before_start=first,
+                   t_goal=(after_goal[0] - t0) / 1e9 if after_goal else 0.0)
+    for stamp, m in sorted(scans, key=lambda item: item[0]):
+        if stamp < t0:
+            continue
+        k = max(int(np.searchsorted(stamps, stamp, side="right")) - 1, 0)
+        sensor = frames.static_offset(body, m.header.frame_id)
+        run.scans.append(((stamp - t0) / 1e9, beam_ends(m, poses[k], sensor)))
+    for stamp, m in sorted(plans, key=lambda item: item[0]):
+        points = path_points(m)
+        if len(points):
+            run.plans.append(((stamp - t0) / 1e9, points))
+    return run
+
+
+def beam_ends(scan: Any, pose: np.ndarray, sensor: tuple[float, float, float]) -> np.ndarray:
+    """Map-frame (K, 2) points where the beams of a ``LaserScan`` hit something (no-return beams left out)."""
+    ranges = np.asarray(scan.ranges, dtype=float)
+    angles = float(scan.angle_min) + float(scan.angle_increment) * np.arange(len(ranges))
+    hit = np.isfinite(ranges) & (ranges >= float(scan.range_min)) & (ranges < float(scan.range_max))
+    x, y, yaw = pose
+    sx, sy, syaw = sensor
+    ox, oy = x + sx * math.cos(yaw) - sy * math.sin(yaw), y + sx * math.sin(yaw) + sy * math.cos(yaw)
+    a = yaw + syaw + angles[hit]
+    return np.column_stack([ox + ranges[hit] * np.cos(a), oy + ranges[hit] * np.sin(a)])
+
+
+class Frames:
+    """The planar transforms a robot bag holds: ``/tf`` edges by stamp, ``/tf_static`` edges once.
+
+    Only single edges are looked up (``map -> odom``, ``base_link -> base_scan``): what a 2D
+    robot stack publishes; a missing edge is the identity."""
+
+    def __init__(self) -> None:
+        self.dynamic: dict[tuple[str, str], tuple[list[int], list[tuple[float, float, float]]]] = {}
+        self.static: dict[tuple[str, str], tuple[float, float, float]] = {}
+
+    def add(self, msg: Any, static: bool = False) -> None:
+        for tf in msg.transforms:
+            key = (tf.header.frame_id.lstrip("/"), tf.child_frame_id.lstrip("/"))
+            planar = (float(tf.transform.translation.x), float(tf.transform.translation.y),
+                      yaw_of(tf.transform.rotation))
+            if static:
+                self.static[key] = planar
+            else:
+                stamps, values = self.dynamic.setdefault(key, ([], []))
+                k = bisect.bisect_right(stamps, stamp_ns(tf.header))  # in stamp order, whatever the log order
+                stamps.insert(k, stamp_ns(tf.header))
+                values.insert(k, planar)
+
+    def static_offset(self, parent: str, child: str) -> tuple[float, float, float]:
+        return self.static.get((parent.lstrip("/"), child.lstrip("/")), (0.0, 0.0, 0.0))
+
+    def in_map(self, frame: str, stamp: int, pose: Any) -> tuple[float, float, float]:
+        """A pose of ``frame`` as (x, y, yaw) in ``map``, with the latest ``map -> frame`` at or before ``stamp``."""
+        x, y, yaw = float(pose.position.x), float(pose.position.y), yaw_of(pose.orientation)
+        frame = frame.lstrip("/")
+        if frame == "map":
+            return x, y, yaw
+        stamps, values = self.dynamic.get(("map", frame), ([], []))
+        k = bisect.bisect_right(stamps, stamp)
+        tx, ty, tyaw = values[k - 1] if k else self.static.get(("map", frame), (0.0, 0.0, 0.0))
+        c, s = math.cos(tyaw), math.sin(tyaw)
+        return tx + c * x - s * y, ty + s * x + c * y, tyaw + yaw
+
+
+__all__ = ["BagIndex", "RobotRun", "ScenarioEntry", "read_index", "read_run"]

@@ -1,0 +1,195 @@
+"""`ambiegen show RUN.mcap --scenario ID -o failure.gif`: a failure you can watch, from a real robot bag.
+
+The bag is recorded once for the module, for real: ``robot_world`` (lockstep), ``nd_driver`` with
+the failing setting of ``bench/nd_stack.py`` (``safety_dist`` 0.3 m), ``sut_adapter`` and the
+recorder with a stack campaign's topics (``campaign.STACK_TOPICS``), every node a subprocess on
+the module's own ROS domain; this test publishes two certified maps on which that robot stalls
+after 8 and 25 simulated seconds (a default ``--stack nd`` campaign of a few evaluations finds no
+failure to draw). The GIF is then read back with Pillow: frame count and size, a robot that
+moves, and the failure marker on the last frame only. Every wait ends on an event; its bound is a
+safety net, never the thing tested.
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from ambiegen_ros.campaign import STACK_TOPICS
+from ambiegen_ros.problems import get_problem
+from ambiegen_ros.sims.full_model import full_model_executor
+from nd_maps import FAILING_SAFETY_DIST, certified_maps
+from sut_graph import Driver, Procs
+
+REPO = Path(__file__).resolve().parents[1]
+LOCKSTEP = {"lockstep": True, "time_scale": 0.0, "scan_rate": 10.0, "sim.dt": 0.1, "cmd_vel_stamped": True,
+            "paired_start": True}
+MAPS = (1, 2)  # of certified_maps(seed 11): ND with safety_dist 0.3 stalls on both, after 8.1 s and 24.7 s
+
+pytestmark = pytest.mark.skipif(os.environ.get("AMBIEGEN_TRANSPORT", "auto") == "rclpy",
+                                reason="the driver node runs on the DDS backend")
+
+
+def record_robot_bag(out: Path, domain: int, maps: tuple[int, ...] = MAPS) -> Path:
+    """A robot bag of ``maps`` driven by the failing ND robot, recorded by the recorder node; its path."""
+    from ambiegen_ros.ros.transport import create_node
+
+    problem = get_problem("robot", {"profile": "refined"})
+    full = full_model_executor(problem, safety_dist=FAILING_SAFETY_DIST, run_invalid=True)
+    drawn = certified_maps(problem, full, max(maps) + 1)
+    mcap = out / "robot_bag.mcap"
+    procs = Procs(domain, out / "logs")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("ROS_DOMAIN_ID", str(domain))
+        mp.delenv("AMBIEGEN_TRANSPORT", raising=False)
+        node = create_node("animation_test_driver", argv=[])
+        try:
+            procs.start("recorder", "ambiegen_ros.nodes.recorder", output=str(mcap),
+                        extra_topics=",".join(STACK_TOPICS))
+            procs.start("world", "sim_nodes.robot_world", **LOCKSTEP)
+            procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True, **{"sim.safety_dist": FAILING_SAFETY_DIST})
+            procs.start("adapter", "sim_nodes.sut_adapter", problem="robot", worker_id="sut", profile="refined",
+                        stall_topic="/nd_driver/stall", plan_topic="/plan", settle_time=0.1, run_invalid=True)
+            driver = Driver(node, problem)
+            driver.wait_matched(count=2)  # the adapter and the recorder
+            node.spin_until(lambda: False, 2.5)  # the recorder looks for the robot's topics once a second
+            driver.send("anim", [drawn[k] for k in maps])
+            got = driver.wait("anim", len(maps), 300)
+            assert all(got), procs.logs()
+        finally:
+            node.shutdown()
+            procs.stop_all()  # SIGINT: the recorder writes the MCAP's summary
+    assert mcap.exists(), procs.logs()
+    return mcap
+
+
+@pytest.fixture(scope="module")
+def bag(tmp_path_factory, module_domains) -> Path:
+    return record_robot_bag(tmp_path_factory.mktemp("robot_bag"), module_domains())
+
+
+def ambiegen(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "ambiegen_ros", *args], cwd=REPO, capture_output=True, text=True,
+                          timeout=300)
+
+
+def frames(path: Path) -> list[np.ndarray]:
+    with Image.open(path) as gif:
+        out = []
+        for k in range(gif.n_frames):
+            gif.seek(k)
+            out.append(np.asarray(gif.convert("RGB"), dtype=np.int16))
+    return out
+
+
+def red_pixels(frame: np.ndarray) -> int:
+    """Pixels of the failure marker's colour on the map (the left 70 %; the legend's entry is right of it):
+    nothing else in the picture is pure red."""
+    r, g, b = (frame[:, : int(frame.shape[1] * 0.7), c] for c in range(3))
+    return int(np.count_nonzero((r > 200) & (g < 60) & (b < 60)))
+
+
+def test_the_bag_holds_both_failures_with_their_streams(bag):
+    from ambiegen_ros.ros.robot_bag import read_index, read_run
+
+    index = read_index(bag)
+    assert list(index.entries) == [0, 1]
+    for sid, entry in index.entries.items():
+        assert entry.outcome is not None and entry.outcome.failure_kind == "stall", entry.outcome
+        run = read_run(index, sid)
+        assert len(run.poses) > 50 and run.scans and run.plans
+        assert np.hypot(*(run.poses[0, 1:3] - run.start)) < 0.5  # at the scenario's start, not the last run's end
+        assert np.all(np.diff(run.poses[:, 0]) >= 0)
+        assert run.t_verdict is not None and run.t_verdict <= run.poses[-1, 0] + 0.5
+    first, second = read_run(index, 0), read_run(index, 1)
+    assert first.entry.end_ns <= second.entry.start_ns  # one stretch of the log each
+
+
+def test_show_animates_a_failure_from_the_bag(bag, tmp_path):
+    out = tmp_path / "failure.gif"
+    run = ambiegen("show", str(bag), "--scenario", "1", "-o", str(out), "--fps", "5", "--speed", "2")
+    assert run.returncode == 0, run.stderr
+    assert str(out) in run.stdout and "FAIL(stall)" in run.stdout and "log time" in run.stdout
+    shots = frames(out)
+    # 24.7 s + the world's last steps, one frame per 0.4 simulated s, and the verdict held at the end
+    # (identical frames are merged by the GIF encoder, so the count is a range)
+    assert 40 <= len(shots) <= 100, len(shots)
+    assert {shot.shape for shot in shots} == {(448, 592, 3)}
+    assert np.abs(shots[len(shots) // 2] - shots[0]).sum() > 0  # the robot moves across frames
+    assert sum(np.abs(b - a).any() for a, b in zip(shots[1:-2], shots[2:-1])) > len(shots) // 2
+    assert red_pixels(shots[-1]) > 50  # the failure marker on the last frame ...
+    assert red_pixels(shots[0]) == red_pixels(shots[len(shots) // 2]) == 0  # ... and not before the verdict
+
+
+def test_show_lists_the_scenarios_of_a_bag_and_asks_for_one(bag):
+    run = ambiegen("show", str(bag))
+    assert run.returncode == 2
+    lines = run.stdout.splitlines()
+    assert len(lines) == 2 and all("FAIL(stall)" in line and "log time" in line for line in lines)
+    assert run.stderr.count("\n") == 1 and "--scenario ID" in run.stderr
+
+
+def test_show_refuses_bad_input_in_one_line(bag, tmp_path):
+    existing = tmp_path / "taken.gif"
+    existing.write_bytes(b"not ours")
+    cases = {
+        "no scenario 7": ["show", str(bag), "--scenario", "7", "-o", str(tmp_path / "x.gif")],
+        "refusing to overwrite": ["show", str(bag), "--scenario", "1", "-o", str(existing)],
+        "not a readable MCAP": ["show", str(existing.with_suffix(".mcap")), "--scenario", "0"],
+        ".gif or .mp4": ["show", str(bag), "--scenario", "1", "-o", str(tmp_path / "x.png")],
+    }
+    existing.with_suffix(".mcap").write_bytes(b"no MCAP here")
+    for words, args in cases.items():
+        run = ambiegen(*args)
+        assert run.returncode == 2 and run.stderr.count("\n") == 1 and words in run.stderr, (words, run.stderr)
+    assert existing.read_bytes() == b"not ours"
+    assert not (tmp_path / "x.gif").exists()
+
+
+def test_show_says_what_a_bag_lacks(tmp_path):
+    """A log without robot scenarios, and a robot run recorded without the robot's topics."""
+    from ambiegen_ros.ros import conversions, topics
+    from ambiegen_ros.ros.conversions import ScenarioMeta
+    from ambiegen_ros.ros.mcap_log import McapLog
+    from ambiegen_ros.ros.qos import STREAM
+    from ambiegen_ros.ros.types import get_registry
+
+    registry = get_registry()
+    problem = get_problem("robot")
+    scenario = problem.codec.from_rows(problem.sample_rows(1, np.random.default_rng(0)))[0]
+    msg = conversions.scenario_message(registry.new, 1, problem, scenario, ScenarioMeta("run", 0))
+    with McapLog(tmp_path / "empty.mcap") as log:
+        log.add_channel(topics.STATUS, topics.STATUS_TYPE, STREAM)
+    with McapLog(tmp_path / "no_odom.mcap") as log:
+        channel = log.add_channel(topics.scenarios("robot"), topics.SCENARIO_TYPES["robot"], STREAM)
+        log.write(channel, registry.serialize(msg, topics.SCENARIO_TYPES["robot"]), 1)
+    for name, words in (("empty", "not a robot bag"), ("no_odom", "no /odom in the bag")):
+        run = ambiegen("show", str(tmp_path / f"{name}.mcap"), "--scenario", "0", "-o", str(tmp_path / f"{name}.gif"))
+        assert run.returncode == 2 and run.stderr.count("\n") == 1 and words in run.stderr, (name, run.stderr)
+
+
+def test_the_foxglove_layout_shows_a_robot_bags_topics():
+    """config/foxglove/robot_bag_layout.json: a layout as Foxglove exports it (panels by id, a split
+    tree of those ids) whose 3D panel shows the recorded robot topics in the map frame."""
+    import json
+
+    layout = json.loads((REPO / "config" / "foxglove" / "robot_bag_layout.json").read_text())
+    panels = layout["configById"]
+
+    def leaves(node):
+        return [node] if isinstance(node, str) else leaves(node["first"]) + leaves(node["second"])
+
+    assert sorted(leaves(layout["layout"])) == sorted(panels)
+    (three_d,) = [cfg for name, cfg in panels.items() if name.startswith("3D!")]
+    assert three_d["followTf"] == "map"
+    shown = {topic for topic, cfg in three_d["topics"].items() if cfg["visible"]}
+    assert {"/map", "/scan", "/plan", "/odom"} <= shown <= set(STACK_TOPICS)
+    paths = [cfg.get("topicPath", "") for cfg in panels.values()]
+    paths += [p["value"] for cfg in panels.values() for p in cfg.get("paths", [])]
+    assert any(path.startswith("/ambiegen/results") for path in paths)
+    assert "scenario_id" in layout["globalVariables"]
