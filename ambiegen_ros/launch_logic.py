@@ -154,6 +154,8 @@ NAV2_LAUNCH_ARGUMENTS: dict[str, tuple[str, str]] = {
     "early_verdicts": ("false", "true: the paper's stall and loitering monitors decide and cancel Nav2; false: Nav2's "
                                 "own result decides (succeeded / aborted), besides collisions and the time limit"),
     "result_timeout": ("0.0", "seconds the generator waits for a scenario (0 = twice the adapter's longest run)"),
+    "known_failures": ("", "YAML of known Nav2 failures, recorded as FAIL(kind, known: name) and not counted as new "
+                           "('' = the package's config/nav2/known_failures.yaml; 'none' = none)"),
     "stacks": ("1", "K stacks of world + Nav2 + adapter fed by one generator, stack i in namespace /stack<i> "
                     "(K > 1: nav2:=ours)"),
 }
@@ -258,6 +260,9 @@ def plan_nav2_campaign(values: dict[str, str], share_dir: str, seed: int | None 
 
     result_timeout = (_number("result_timeout", value["result_timeout"], float, 0.0)
                       or nav2_result_timeout(RobotSimConfig(), speed, k, start_timeout))
+    known = value["known_failures"]
+    known = "" if known.strip().lower() == "none" else known or os.path.join(share_dir, "config", "nav2",
+                                                                              "known_failures.yaml")
     stacks = _number("stacks", value["stacks"], int, 1)
     if stacks > 1 and mode != "ours":
         raise ValueError(f"stacks: {stacks} stacks need nav2:=ours (each stack's Nav2 runs on its own world's clock, "
@@ -272,6 +277,7 @@ def plan_nav2_campaign(values: dict[str, str], share_dir: str, seed: int | None 
     for ns in groups:
         nodes += nav2_stack(ns, mode, params, scaled, base, k, upsample, start_timeout, early, speed,
                             generator.parameters["config_file"], value["profile"])
+        nodes[-1].parameters["known_failures"] = known
     base.nodes = nodes + [generator]
     base.workers = stacks
     base.nav2_params = scaled
@@ -350,8 +356,10 @@ def summary_table(summary: dict[str, Any]) -> str:
         rows.append(("failures", f"{summary['failures']}" + (f"  (outcomes: {by_kind})" if by_kind else "")))
         if summary.get("failures"):
             pictures = summary.get("failure_pictures") or []
+            known = summary.get("known_failures") or 0
             rows.append(("distinct", f"{summary.get('distinct_failures', '?')} distinct failures (by what failed and "
-                                     f"where), {len(pictures)} drawn"))
+                                     f"where), {len(pictures)} drawn" + (f"; {known} known failures (not counted)"
+                                                                        if known else "")))
             for picture in pictures[:3]:
                 rows.append(("picture", f"{picture['path']}  ({picture['signature']})"))
             if len(pictures) > 3:

@@ -154,6 +154,7 @@ def run_batch(args) -> int:
                       install, ros)
     graph.ros("adapter", run("sut_adapter", problem="robot", worker_id="nav2", goal_mode="action",
                              early_verdicts=args.early_verdicts, time_limit_speed=speed or 0.0,
+                             known_failures=str(REPO / "config" / "nav2" / "known_failures.yaml"),
                               time_scale=args.time_scale, collision_topic="/collision", plan_topic="/plan", tick_period=0.02,
                               map_upsample=args.map_upsample,
                               settle_time=1.0, start_timeout=120.0, profile=args.profile,
@@ -191,7 +192,9 @@ def run_batch(args) -> int:
                    "controller": controller, "early_verdicts": args.early_verdicts,
                    "early_verdict": m.get("early_verdict"), "early_detail": m.get("early_detail"),
                    "early_time": m.get("early_time"), "decided_by": m.get("decided_by"),
-                   "time_limit": m.get("time_limit"), "scenario": sc.to_dict(),
+                   "time_limit": m.get("time_limit"), "route_length_m": m.get("route_length_m"),
+                   "map_side_m": m.get("map_side_m"), "known_failure": m.get("known_failure"),
+                   "scenario": sc.to_dict(),
                    "failure_kind": res.failure_kind, "failed": res.failed, "detail": res.detail,
                    "nav2_status": m.get("nav2_status"), "nav2_error_code": m.get("nav2_error_code"),
                    "nav2_error_msg": m.get("nav2_error_msg"), "plans": m.get("plans"),
@@ -272,17 +275,35 @@ def verdict_agreement(rows: list[dict]) -> list[str]:
     return out
 
 
+def known_facts(row: dict, problem) -> dict:
+    """What a known-failure entry reads of a row: the plans counted, and the clearance route and
+    map side (recorded since issue 27; planned again for older rows)."""
+    route, side = row.get("route_length_m"), row.get("map_side_m")
+    if route is None:
+        from ambiegen_ros.sims import reference
+        from ambiegen_ros.sims.full_model import full_model_executor
+
+        full = full_model_executor(problem)
+        env = problem.environment(problem.parse(row["scenario"]))
+        route = reference.before(problem, problem.parse(row["scenario"]), full.config).metrics["route_length_m"]
+        side = float(max(env.grid.shape) * env.resolution)
+    return {"plans": row.get("plans"), "route_length_m": route, "map_side_m": side}
+
+
 def report(args) -> int:
     from ambiegen_ros.problems import get_problem
     from ambiegen_ros.ros.runlog import iter_messages
+    from ambiegen_ros.sims import known_failures
     from ambiegen_ros.sims.outcome import Outcome
     from ambiegen_ros.sims.signature import DistinctFailures, signature
     from ambiegen_ros.viz.execution import save_execution_plot
 
     rows = [json.loads(line) for line in RUNS.read_text().splitlines() if line.strip()]
+    entries = known_failures.load(REPO / "config" / "nav2" / "known_failures.yaml")
     lines = ["# Nav2 on AmbieGen's maps (measured; appended by `bench/nav2_maps.py`)", "",
-             "| label | time scale | maps | failures | rate | distinct (by place and kind) | kinds | failed without "
-             "a plan | Nav2 results (error codes) | failures per hour of runs |", "|---|---|---|---|---|---|---|---|---|---|"]
+             "| label | time scale | maps | failures | rate | known (not counted) | distinct new (by place and kind) | "
+             "kinds | failed without a plan | Nav2 results (error codes) | failures per hour of runs |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     failures, beyond = [], beyond_limit(rows)
     everywhere = DistinctFailures()  # across the batches, for the pictures
     for (label, k), group in sorted(Counter((r["label"], r["time_scale"]) for r in rows).items()):
@@ -290,11 +311,15 @@ def report(args) -> int:
         failed = [r for r in batch if r["failed"]]
         distinct = DistinctFailures()
         problem = get_problem("robot", {**batch[0].get("problem_config", {}), "profile": batch[0]["profile"]})
+        known = 0
         for r in failed:
             # rows from before results carried their failure point: the last pose recorded stands in
             point = r["failure_point"] or (r["trajectory_every_10"] or [None])[-1]
             out = Outcome(objectives={}, failed=True, failure_kind=r["failure_kind"], detail=r["detail"],
-                          failure_point=tuple(point) if point else None)
+                          failure_point=tuple(point) if point else None, metrics=known_facts(r, problem))
+            if known_failures.mark(out, entries).metrics.get("known_failure"):
+                known += 1  # recorded, never counted as a new distinct failure
+                continue
             sig = signature(problem, None, out)
             if sig is not None:
                 distinct.add(sig)
@@ -311,7 +336,7 @@ def report(args) -> int:
         mark = " (beyond the time-scale limit: verdicts differ from real time, the host's, not Nav2's)" if (
             label, k) in beyond else ""
         lines.append(f"| {label}{mark} | {k:g} | {len(batch)} | {len(failed)} | {len(failed) / len(batch):.0%} | "
-                     f"{len(distinct)} | {kinds} | {planless} | {nav2} | {len(failed) / hours if hours else 0:.1f} |")
+                     f"{known} | {len(distinct)} | {kinds} | {planless} | {nav2} | {len(failed) / hours if hours else 0:.1f} |")
     lines += ["", "Route lengths (the problem's A* length, F1) of the maps Nav2 failed and passed:", ""]
     for (label, k), _ in sorted(Counter((r["label"], r["time_scale"]) for r in rows).items()):
         batch = [r for r in rows if r["label"] == label and r["time_scale"] == k]

@@ -37,7 +37,10 @@ To the generator it is one more sim worker (heartbeats on ``/ambiegen/workers``,
   ``metrics["early_verdict"]``, ``early_detail`` and ``early_time``. With
   ``early_verdicts:=true`` they decide, as for a robot without recoveries, and a goal still
   running at their verdict is cancelled. Nav2's result is recorded beside the verdict either way
-  (``nav2_status``, ``nav2_error_code``, ``nav2_error_msg``).
+  (``nav2_status``, ``nav2_error_code``, ``nav2_error_msg``). A failure that matches an entry of
+  ``known_failures`` (a YAML file, ``ambiegen_ros.sims.known_failures``; the Nav2 launch passes
+  ``config/nav2/known_failures.yaml``, NavFn's path cap) is recorded as FAIL(kind, known: name),
+  ``metrics["known_failure"]``, and not counted among new distinct failures.
 * ``vehicle``: the road on ``road_topic`` (``nav_msgs/Path``, latched); watches ``odom_topic``
   (pose = centre of the car's bounding box).
 * ``thermostat``: set points on ``setpoint_topic`` (``std_msgs/Float64``), each when its
@@ -80,7 +83,7 @@ import numpy as np
 from ambiegen_ros.core.config import ConfigError
 from ambiegen_ros.ros import conversions
 from ambiegen_ros.ros.qos import DEFAULT, LATCHED, STREAM, Qos
-from ambiegen_ros.sims import Outcome, reference
+from ambiegen_ros.sims import Outcome, known_failures, reference
 from ambiegen_ros.sims.full_model import FullModelExecutor, sim_config
 from ambiegen_ros.sims.oracles import CarJudge, RobotJudge, ThermostatJudge, warm_up_judge
 from ambiegen_ros.sims.robot import polyline_length
@@ -170,6 +173,12 @@ class SutAdapter:
                                      "topic); false (default with goal_mode action): the stack's own result decides "
                                      "(Nav2: succeeded = PASS, aborted = nav2_aborted), besides a collision and the "
                                      "time limit, and the early verdict is recorded beside it"))
+        known = p("known_failures", "", "YAML of known failures (ambiegen_ros/sims/known_failures.py): a failure "
+                                        "matching one is recorded as FAIL(kind, known: name) ('' = none)")
+        try:
+            self.known_failures = known_failures.load(known) if known else []
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
         self.time_limit_speed = float(p("time_limit_speed", 0.0, "robot: top speed [m/s] of the time limit max("
                                                                  "timeout, 2 x route / speed + 60 s) (the stack's, "
                                                                  "e.g. Nav2's controller max speed; 0 = the oracle's "
@@ -602,6 +611,8 @@ class SutAdapter:
             outcome.detail = f"{outcome.detail} (the system under test gave up, on {self.topics['stall']})"
         if self.reference and outcome.failed:  # does the in-process reference pass the same scenario?
             outcome = reference.certify(outcome, reference.after(self.problem, job.scenario, self.oracle, outcome))
+        if self.known_failures and outcome.failed:
+            outcome = known_failures.mark(outcome, self.known_failures)
         wall = time.monotonic() - job.started
         outcome.elapsed_sec = wall
         outcome.metrics = {**outcome.metrics, "valid": job.valid, "reason": job.reason, "wall_s": wall,

@@ -17,6 +17,7 @@ from typing import Any
 
 from ..problems import get_problem
 from ..ros.runlog import read_metadata
+from ..sims.known_failures import is_known
 from ..sims.signature import DistinctFailures, same_failure, signature
 from .replay import recorded_scenarios
 
@@ -51,10 +52,14 @@ def draw_failures(mcap: str | Path, out_dir: str | Path, limit: int = PICTURES_K
                     runs[sid] = again
         return runs[sid]
 
+    known = 0
     for sid in sorted(rec.outcomes):
         logged, scenario = rec.outcomes[sid], rec.scenarios.get(sid)
         sig = None if scenario is None else signature(problem, scenario, logged)
         if sig is None:
+            continue
+        if is_known(logged):  # a limit its engineers know (sims.known_failures): recorded, not counted as new
+            known += 1
             continue
         if not distinct.add(sig):
             if not paired:  # the first failure counted as an earlier one, and only that one
@@ -72,5 +77,6 @@ def draw_failures(mcap: str | Path, out_dir: str | Path, limit: int = PICTURES_K
             continue
         save_execution_plot(problem, scenario, shown(sid), path)
         pictures.append({"scenario_id": sid, "signature": sig.describe(), "path": str(path)})
-    return {"certified_failures": len(distinct.seen), "distinct_failures": len(distinct),
+    return {"certified_failures": len(distinct.seen) + known, "known_failures": known,
+            "distinct_failures": len(distinct),
             "failure_pictures": pictures, "same_failure_pair": pair}

@@ -113,6 +113,7 @@ class RobotJudge(_Judge):
         self.walls = robot.WallGeometry(self.grid, self.resolution, self.cfg.clearance_cells, self.origin,
                                         engine=self.cfg.engine)
         self.monitors: robot.RobotMonitors | None = None
+        self.route_m: float | None = None
         self._t: list[np.ndarray] = []
         self._xy: list[np.ndarray] = []
         self._heading = 0.0
@@ -132,6 +133,7 @@ class RobotJudge(_Judge):
         cell = lambda px, py: (int(math.floor((px - ox) / res)), int(math.floor((py - oy) / res)))  # noqa: E731
         waypoints, length = robot.plan_route(self.grid, res, cell(x0, y0), cell(*self.goal), self.cfg,
                                              self.cfg.route_diagonal or self.diagonal)
+        self.route_m = float(length) if len(waypoints) else None  # the route itself, whatever the limit uses
         if self.route_length is not None:
             length = self.route_length
         self.monitors = robot.RobotMonitors(self.cfg, self.goal, self.cfg.time_limit(length, self.speed),
@@ -219,6 +221,8 @@ class RobotJudge(_Judge):
             "distance_to_goal": (float(math.hypot(xy[-1, 0] - self.goal[0], xy[-1, 1] - self.goal[1]))
                                  if len(xy) else None),
             "samples": self.samples,
+            "route_length_m": self.route_m,  # the route planned from the start (known failures read it)
+            "map_side_m": float(max(self.grid.shape) * self.resolution),
             # our monitors, the stack's own result, or nothing (an error)
             "decided_by": ("monitors" if mon is not None and mon.decided
                            else "stack" if self.kind not in (None, "error") else "none"),

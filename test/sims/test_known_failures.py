@@ -1,0 +1,53 @@
+"""Known failures (``sims.known_failures``): NavFn's path cap, as shipped, names exactly the
+failures that show it, and a bad file is one clear line."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ambiegen_ros.sims import known_failures, oracles
+from ambiegen_ros.sims.outcome import Outcome
+
+SHIPPED = Path(__file__).resolve().parents[2] / "config" / "nav2" / "known_failures.yaml"
+
+
+def failure(kind="nav2_aborted", plans=0, route=120.0, side=50.0, failed=True) -> Outcome:
+    return Outcome(objectives={}, failed=failed, failure_kind=kind, detail="Nav2 aborted its goal (error 208)",
+                   metrics={"plans": plans, "route_length_m": route, "map_side_m": side})
+
+
+def test_the_navfn_cap_names_a_planless_failure_past_twice_the_maps_side():
+    (cap,) = known_failures.load(SHIPPED)
+    assert cap.name == "navfn_path_cap" and "4655" in cap.reference
+    marked = known_failures.mark(failure(route=106.0), [cap])
+    assert marked.metrics["known_failure"] == "navfn_path_cap" and "known: navfn_path_cap" in marked.detail
+    assert known_failures.is_known(marked)
+    # the measured boundary: a 96 m route is inside the cap; a plan, a pass or another kind is not it
+    for other in (failure(route=96.0), failure(plans=3), failure(plans="2"), failure(failed=False, kind="none"),
+                  failure(kind="collision"), failure(route=None)):
+        assert not known_failures.is_known(known_failures.mark(other, [cap])), other
+    assert known_failures.is_known(known_failures.mark(failure(plans="0", kind="stall", route=425.5), [cap]))
+
+
+def test_a_bad_file_is_one_clear_error(tmp_path):
+    bad = tmp_path / "known.yaml"
+    bad.write_text("- name: x\n  reference: y\n  colour: red\n")
+    with pytest.raises(ValueError, match="unknown field.*colour"):
+        known_failures.load(bad)
+    bad.write_text("- name: x\n")
+    with pytest.raises(ValueError, match="needs a name and a reference"):
+        known_failures.load(bad)
+    with pytest.raises(ValueError, match="cannot read"):
+        known_failures.load(tmp_path / "none.yaml")
+
+
+def test_the_robot_oracle_records_the_route_and_the_map_side():
+    grid = np.zeros((60, 80), dtype=bool)
+    grid[0, :] = grid[-1, :] = grid[:, 0] = grid[:, -1] = True
+    judge = oracles.RobotJudge(grid, 0.5, (30.25, 15.25))
+    judge.start(5.25, 15.25)
+    judge.fail("nav2_aborted", "Nav2 aborted")
+    m = judge.outcome().metrics
+    assert m["map_side_m"] == 40.0 and m["route_length_m"] == pytest.approx(25.0, abs=0.5)
