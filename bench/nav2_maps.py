@@ -116,6 +116,8 @@ def run_batch(args) -> int:
         raise SystemExit(info["skip"])
     overrides = problem_config(args.config)
     maps = pick_maps(args.maps, args.count, args.profile, args.seed, overrides)
+    if args.pick:  # only these maps of the batch (0-based), e.g. to look at one failure again
+        maps = [maps[int(i)] for i in args.pick.split(",")]
     done = done_keys(args.label, args.time_scale)
     todo = [sc for sc in maps if scenario_key(sc.to_dict(), overrides) not in done]
     print(f"{len(maps)} maps, {len(maps) - len(todo)} already in {RUNS}; running {len(todo)}")
@@ -376,6 +378,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--setup", default=os.path.expanduser("~/jazzy-verify/install/setup.bash"))
     ap.add_argument("--maps", default="random", help="random | suite:FILE[,FILE...]")
     ap.add_argument("--count", type=int, default=20)
+    ap.add_argument("--pick", default="", metavar="I,J,...", help="run only these maps of the batch (0-based)")
     ap.add_argument("--profile", default="refined", choices=("replication", "refined"))
     ap.add_argument("--seed", type=int, default=3)
     ap.add_argument("--label", default="random-refined")

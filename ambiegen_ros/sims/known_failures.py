@@ -43,7 +43,7 @@ class KnownFailure:
             return False
         if self.route_over_map_side is not None:
             route, side = m.get("route_length_m"), m.get("map_side_m")
-            if route is None or not side or route <= self.route_over_map_side * side:
+            if route in (None, "None") or not side or float(route) <= self.route_over_map_side * float(side):
                 return False
         return True
 

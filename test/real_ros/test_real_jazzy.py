@@ -442,6 +442,7 @@ def test_sut_adapter_takes_nav2s_own_abort_as_the_verdict(jazzy, workspace, grap
     assert res is not None, g.logs()
     assert res.failure_kind == "nav2_aborted" and res.failed, res.detail
     assert "error 102" in res.detail and "failed to make progress" in res.detail
-    assert res.metrics["nav2_status"] == "aborted" and res.metrics["nav2_error_code"] == 102
-    assert res.metrics["decided_by"] == "stack" and res.metrics["early_verdicts"] is False
+    # metrics travel as text (diagnostic_msgs/KeyValue)
+    assert res.metrics["nav2_status"] == "aborted" and int(res.metrics["nav2_error_code"]) == 102
+    assert res.metrics["decided_by"] == "stack" and res.metrics["early_verdicts"] == "False"
     assert res.metrics["early_verdict"] in ("undecided", "none", "stall", "loiter")

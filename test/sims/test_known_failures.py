@@ -29,6 +29,8 @@ def test_the_navfn_cap_names_a_planless_failure_past_twice_the_maps_side():
                   failure(kind="collision"), failure(route=None)):
         assert not known_failures.is_known(known_failures.mark(other, [cap])), other
     assert known_failures.is_known(known_failures.mark(failure(plans="0", kind="stall", route=425.5), [cap]))
+    logged = failure(plans="0", route="106.0", side="50.0")  # metrics as a logged result carries them: text
+    assert known_failures.is_known(known_failures.mark(logged, [cap]))
 
 
 def test_a_bad_file_is_one_clear_error(tmp_path):
