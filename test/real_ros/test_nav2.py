@@ -30,7 +30,7 @@ for extra in (REPO / "test", REPO / "test" / "sims"):
     if str(extra) not in sys.path:
         sys.path.insert(0, str(extra))
 
-from jazzy_env import require, ros_args, ros_env, venv_env  # noqa: E402
+from jazzy_env import require, ros_args, ros_env, ros_run, venv_env  # noqa: E402
 from test_real_jazzy import answered, result_workers, rosbags_counts  # noqa: E402
 
 from ambiegen_ros import launch_logic  # noqa: E402
@@ -172,11 +172,13 @@ def test_bring_your_own_nav2_the_two_documented_commands(jazzy, workspace, graph
     require(jazzy, *BRINGUP)
     theirs, merged = jazzy_params(jazzy), tmp_path / "nav2_for_ambiegen.yaml"
     g, env = graph(), ros_env(ros_domain)
-    g.ros("nav2", f"ros2 run ambiegen_ros ambiegen nav2-params {theirs} --time-scale {TIME_SCALE:g} -o {merged} && "
-                  f"ros2 launch nav2_bringup navigation_launch.py use_sim_time:=true params_file:={merged}",
+    made = ros_run(f"ros2 run ambiegen_ros ambiegen nav2-params {theirs} --time-scale {TIME_SCALE:g} -o {merged}",
+                   workspace, env)
+    assert made.returncode == 0 and f"params_file:={merged}" in made.stdout, made.stdout + made.stderr
+    g.ros("nav2", f"ros2 launch nav2_bringup navigation_launch.py use_sim_time:=true params_file:={merged}",
           workspace, env)
     g.ros("launch", "ros2 launch ambiegen_ros nav2_campaign.launch.py nav2:=external " + " ".join(
-        f"{k}:={v}" for k, v in dict(params_file=theirs, evaluations=6, seed=2, output_dir=tmp_path,
+        f"{k}:={v}" for k, v in dict(params_file=theirs, algorithm="random", evaluations=6, seed=2, output_dir=tmp_path,
                                      time_scale=TIME_SCALE, config_file=SMALL_CONFIG, profile="refined").items()),
         workspace, env)
     assert g.wait("launch", 2400) == 0, g.logs()
@@ -193,7 +195,7 @@ def test_jazzy_defaults_mppi_all_in_one_launch(jazzy, workspace, graph, tmp_path
     require(jazzy, *BRINGUP)
     g, env = graph(), ros_env(ros_domain)
     g.ros("launch", "ros2 launch ambiegen_ros nav2_campaign.launch.py nav2:=bringup " + " ".join(
-        f"{k}:={v}" for k, v in dict(params_file=jazzy_params(jazzy), evaluations=6, seed=3, output_dir=tmp_path,
+        f"{k}:={v}" for k, v in dict(params_file=jazzy_params(jazzy), algorithm="random", evaluations=6, seed=3, output_dir=tmp_path,
                                      time_scale=TIME_SCALE, config_file=SMALL_CONFIG, profile="refined").items()),
         workspace, env)
     assert g.wait("launch", 2400) == 0, g.logs()
@@ -208,7 +210,7 @@ def test_two_stacks_share_one_generator_and_one_recorder(jazzy, workspace, graph
     require(jazzy, *NAV2)
     g, env = graph(), ros_env(ros_domain)
     g.ros("launch", "ros2 launch ambiegen_ros nav2_campaign.launch.py stacks:=2 " + " ".join(
-        f"{k}:={v}" for k, v in dict(evaluations=6, seed=4, output_dir=tmp_path, time_scale=1.0,
+        f"{k}:={v}" for k, v in dict(algorithm="random", evaluations=6, seed=4, output_dir=tmp_path, time_scale=1.0,
                                      config_file=SMALL_CONFIG, profile="refined").items()), workspace, env)
     assert g.wait("launch", 2400) == 0, g.logs()
     (mcap,) = tmp_path.glob("*.mcap")
