@@ -186,7 +186,9 @@ def test_bring_your_own_nav2_the_two_documented_commands(jazzy, workspace, graph
     mcap, _ = answered_campaign(tmp_path)
     rows = result_metrics(mcap)
     assert rows and all(r.get("early_verdicts") == "False" for r in rows if "early_verdicts" in r), rows  # as text
-    assert any(r.get("nav2_status") == "succeeded" for r in rows), rows  # Nav2's own word decided some run
+    ran = [r for r in rows if r["failure_kind"] not in ("invalid_scenario", "invalid_test")]
+    assert ran, rows  # Nav2 got goals; whether it reaches them is what is measured, not asserted
+    assert all(r.get("nav2_status") not in (None, "no goal") and "early_verdict" in r for r in ran), ran
     print("byo nav2:", [(r["failure_kind"], r.get("nav2_status"), r.get("early_verdict")) for r in rows])
 
 
@@ -202,7 +204,7 @@ def test_jazzy_defaults_mppi_all_in_one_launch(jazzy, workspace, graph, tmp_path
     mcap, _ = answered_campaign(tmp_path)
     assert "MPPIController" in mcap.with_name(mcap.stem + ".nav2_params.yaml").read_text()
     rows = result_metrics(mcap)
-    assert all("early_verdict" in r for r in rows if r["failure_kind"] not in ("invalid", "invalid_test")), rows
+    assert all("early_verdict" in r for r in rows if r["failure_kind"] not in ("invalid_scenario", "invalid_test")), rows
     print("mppi:", [(r["failure_kind"], r.get("nav2_status"), r.get("early_verdict")) for r in rows])
 
 
