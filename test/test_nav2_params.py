@@ -29,7 +29,8 @@ THEIRS = {
                       "scan": {"topic": "/scan", "data_type": "LaserScan"}},
         "inflation_layer": {"plugin": "nav2_costmap_2d::InflationLayer", "inflation_radius": 0.7}}}},
     "collision_monitor": {"ros__parameters": {"base_frame_id": "base_footprint", "cmd_vel_in_topic": "cmd_vel_smoothed"}},
-    "bt_navigator": {"ros__parameters": {"bt_loop_duration": 10, "default_server_timeout": 20}},
+    "bt_navigator": {"ros__parameters": {"bt_loop_duration": 10, "default_server_timeout": 20,
+                                         "action_server_result_timeout": 900.0}},
 }
 
 
@@ -57,7 +58,9 @@ def test_rates_scale_with_the_time_scale_and_the_top_speed_is_the_controllers(tm
     assert got["controller_server"]["ros__parameters"]["controller_frequency"] == 40.0
     assert got["local_costmap"]["local_costmap"]["ros__parameters"]["update_frequency"] == 10.0
     assert got["bt_navigator"]["ros__parameters"]["bt_loop_duration"] == 5
-    assert got["bt_navigator"]["ros__parameters"]["default_server_timeout"] == 20  # a timeout: sim time, unscaled
+    bt = got["bt_navigator"]["ros__parameters"]
+    assert bt["default_server_timeout"] == 1000  # the overlay's (Jazzy's 20 ms aborts goals on a loaded host), unscaled
+    assert bt["action_server_result_timeout"] == 900.0  # a timeout of theirs: not a rate, left alone
     assert top_speed(got) == 0.5
     dwb = yaml.safe_load((REPO / "config" / "nav2" / "pioneer_navfn_dwb.yaml").read_text())
     assert top_speed(dwb) == 0.3 and top_speed({}) is None
