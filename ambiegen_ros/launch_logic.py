@@ -179,13 +179,16 @@ class IncludeSpec:
     arguments: dict[str, str]
 
 
-def nav2_overlay(value: str, params_file: str, share_dir: str) -> str | None:
-    """The overlay file a Nav2 campaign merges on: the package's for a user's params file."""
+def file_argument(value: str, default: str | None) -> str | None:
+    """A file launch argument: 'none' = no file, '' = ``default``, else the path given."""
     if value.strip().lower() == "none":
         return None
-    if value:
-        return value
-    return os.path.join(share_dir, *OVERLAY_FILE) if params_file else None
+    return value or default
+
+
+def nav2_overlay(value: str, params_file: str, share_dir: str) -> str | None:
+    """The overlay file a Nav2 campaign merges on: the package's for a user's params file."""
+    return file_argument(value, os.path.join(share_dir, *OVERLAY_FILE) if params_file else None)
 
 
 def nav2_stack(ns: str, mode: str, params: dict, scaled: Path, base: CampaignPlan, k: float, upsample: int,
@@ -260,9 +263,7 @@ def plan_nav2_campaign(values: dict[str, str], share_dir: str, seed: int | None 
 
     result_timeout = (_number("result_timeout", value["result_timeout"], float, 0.0)
                       or nav2_result_timeout(RobotSimConfig(), speed, k, start_timeout))
-    known = value["known_failures"]
-    known = "" if known.strip().lower() == "none" else known or os.path.join(share_dir, "config", "nav2",
-                                                                              "known_failures.yaml")
+    known = file_argument(value["known_failures"], os.path.join(share_dir, "config", "nav2", "known_failures.yaml")) or ""
     stacks = _number("stacks", value["stacks"], int, 1)
     if stacks > 1 and mode != "ours":
         raise ValueError(f"stacks: {stacks} stacks need nav2:=ours (each stack's Nav2 runs on its own world's clock, "
