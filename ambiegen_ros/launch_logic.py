@@ -7,6 +7,7 @@ without ROS and both ways of running a campaign name and report it alike.
 from __future__ import annotations
 
 import os
+import re
 import secrets
 import uuid
 from dataclasses import dataclass, field
@@ -158,6 +159,9 @@ NAV2_LAUNCH_ARGUMENTS: dict[str, tuple[str, str]] = {
                            "('' = the package's config/nav2/known_failures.yaml; 'none' = none)"),
     "stacks": ("1", "K stacks of world + Nav2 + adapter fed by one generator, stack i in namespace /stack<i> "
                     "(K > 1: nav2:=ours)"),
+    "part": ("all", "what this host runs, for a campaign across hosts: all | generator (the recorder and the "
+                    "generator, for `stacks` stacks elsewhere) | stack<i> (stack i alone, in /stack<i>, serving "
+                    "campaigns until Ctrl-C)"),
 }
 NAV2_NODES = (  # (node name, package, executable): the minimum Nav2 for navigate_to_pose with NavFn + DWB
     ("controller_server", "nav2_controller", "controller_server"),
@@ -166,6 +170,17 @@ NAV2_NODES = (  # (node name, package, executable): the minimum Nav2 for navigat
     ("bt_navigator", "nav2_bt_navigator", "bt_navigator"),
     ("lifecycle_manager_navigation", "nav2_lifecycle_manager", "lifecycle_manager"),
 )
+NAV2_MANAGED = tuple(name for name, _, _ in NAV2_NODES if not name.startswith("lifecycle_manager"))
+
+
+def nav2_node_parameters(name: str) -> dict:
+    """What our Nav2 node set fixes whatever the params file says: sim time, and the lifecycle
+    manager's node list (Jazzy's nav2_params.yaml has none: navigation_launch.py passes its own)."""
+    if name.startswith("lifecycle_manager"):
+        return {"use_sim_time": True, "autostart": True, "node_names": list(NAV2_MANAGED)}
+    return {"use_sim_time": True}
+
+
 NAV2_TOPICS = ("/map", "/initialpose", "/scan", "/odom", "/tf", "/tf_static", "/cmd_vel", "/plan", "/collision")
 """What a Nav2 campaign records besides the AmbieGen topics: a robot bag (types and QoS: the publishers')."""
 EXTERNAL_START_TIMEOUT = 600.0  # s the adapter waits for a Nav2 the user starts by hand
@@ -210,7 +225,7 @@ def nav2_stack(ns: str, mode: str, params: dict, scaled: Path, base: CampaignPla
             files = [str(write_params(for_namespace(params, ns), scaled.with_name(f"{scaled.stem}.{ns}.yaml"),
                                       f"{scaled.name} for the stack in /{ns}", overwrite=True))]
         remap = [("/tf", "tf"), ("/tf_static", "tf_static"), ("/clock", at("/clock"))] if ns else []
-        nav2 = [NodeSpec(name, executable, {"use_sim_time": True}, package=package, params_files=files,
+        nav2 = [NodeSpec(name, executable, nav2_node_parameters(name), package=package, params_files=files,
                          namespace=ns, remappings=remap) for name, package, executable in NAV2_NODES]
     lifecycle = ",".join(f"{ns}/{n}" if ns else n for n in ("planner_server", "controller_server", "bt_navigator"))
     adapter = NodeSpec(f"sut_adapter{suffix}", "sut_adapter", {
@@ -225,6 +240,13 @@ def nav2_stack(ns: str, mode: str, params: dict, scaled: Path, base: CampaignPla
         "early_verdicts": early, "time_limit_speed": speed or 0.0,
         "config_file": config_file, "profile": profile, "min_result_subscribers": 2})
     return [world, *nav2, adapter]
+
+
+def campaign_part(value: str) -> str:
+    """``all``, ``generator`` or ``stack<i>`` (i >= 0): what one host of a campaign runs."""
+    if value in ("all", "generator") or re.fullmatch(r"stack(0|[1-9][0-9]*)", value):
+        return value
+    raise ValueError(f"part: unknown {value!r} (allowed: all | generator | stack<i>, e.g. stack0)")
 
 
 def nav2_result_timeout(cfg: Any, speed: float | None, time_scale: float, start_timeout: float) -> float:
@@ -265,22 +287,27 @@ def plan_nav2_campaign(values: dict[str, str], share_dir: str, seed: int | None 
                       or nav2_result_timeout(RobotSimConfig(), speed, k, start_timeout))
     known = file_argument(value["known_failures"], os.path.join(share_dir, "config", "nav2", "known_failures.yaml")) or ""
     stacks = _number("stacks", value["stacks"], int, 1)
-    if stacks > 1 and mode != "ours":
-        raise ValueError(f"stacks: {stacks} stacks need nav2:=ours (each stack's Nav2 runs on its own world's clock, "
-                         "/<ns>/clock, which navigation_launch.py cannot remap)")
+    part = campaign_part(value["part"])
+    if (stacks > 1 or part != "all") and mode != "ours":
+        raise ValueError(f"stacks: {stacks} stacks (part {part}) need nav2:=ours (each stack's Nav2 runs on its own "
+                         "world's clock, /<ns>/clock, which navigation_launch.py cannot remap)")
     recorder, generator = base.node("recorder"), base.node("generator")
-    groups = [""] if stacks == 1 else [f"stack{i}" for i in range(stacks)]
+    groups = [""] if stacks == 1 and part == "all" else [f"stack{i}" for i in range(stacks)]
     recorder.parameters["extra_topics"] = ",".join(
         topic if not ns else f"/{ns}{topic}" for ns in groups for topic in NAV2_TOPICS)
     generator.parameters.update(min_subscribers=1 + stacks, min_workers=stacks, max_in_flight=1,
                                 result_timeout=result_timeout)
-    nodes = [recorder]
-    for ns in groups:
+    here = {"all": groups, "generator": []}.get(part, [part])
+    nodes = [] if part.startswith("stack") else [recorder]
+    for ns in here:
         nodes += nav2_stack(ns, mode, params, scaled, base, k, upsample, start_timeout, early, speed,
                             generator.parameters["config_file"], value["profile"])
         nodes[-1].parameters["known_failures"] = known
-    base.nodes = nodes + [generator]
-    base.workers = stacks
+    base.nodes = nodes + ([] if part.startswith("stack") else [generator])
+    base.workers = stacks if part == "all" else len(here)
+    if part.startswith("stack"):
+        base.notes.append(f"part:={part}: stack {part[5:]} alone, in /{part}, serving the generator of "
+                          "part:=generator on another host (same ROS domain) until Ctrl-C")
     base.nav2_params = scaled
     if mode == "bringup":
         base.includes = [IncludeSpec("nav2_bringup", "launch/navigation_launch.py", {

@@ -51,7 +51,7 @@ def _actions(plan):
         package=spec.package, executable=spec.executable, name=spec.name, namespace=spec.namespace or None,
         output="screen", parameters=[*spec.params_files, spec.parameters], remappings=spec.remappings)
         for spec in plan.nodes}
-    recorder, generator = nodes["recorder"], nodes["generator"]
+    recorder, generator = nodes.get("recorder"), nodes.get("generator")  # none on a host of stacks only
 
     def on_generator_exit(event, _context):
         exit_codes["generator"] = event.returncode
@@ -70,11 +70,12 @@ def _actions(plan):
     includes = [IncludeLaunchDescription(
         PythonLaunchDescriptionSource(os.path.join(get_package_share_directory(spec.package), spec.launch_file)),
         launch_arguments=list(spec.arguments.items())) for spec in plan.includes]
+    ends = [RegisterEventHandler(OnProcessExit(target_action=node, on_exit=handler))
+            for node, handler in ((generator, on_generator_exit), (recorder, on_recorder_exit)) if node is not None]
     return [
-        LogInfo(msg=f"campaign {plan.run_id}: recording to {plan.mcap}"),
+        *([LogInfo(msg=f"campaign {plan.run_id}: recording to {plan.mcap}")] if recorder is not None else []),
         *[LogInfo(msg=note) for note in plan.notes],
-        RegisterEventHandler(OnProcessExit(target_action=generator, on_exit=on_generator_exit)),
-        RegisterEventHandler(OnProcessExit(target_action=recorder, on_exit=on_recorder_exit)),
+        *ends,
         *nodes.values(),
         *includes,
     ]

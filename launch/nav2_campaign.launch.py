@@ -24,9 +24,14 @@ or the time limit max(300 s, 2 x the clearance route / the controller's top spee
 `early_verdicts:=true` lets the paper's stall and loitering monitors decide instead. Either way
 each result records the early verdict beside Nav2's.
 
+Several stacks (`nav2:=ours`): `stacks:=K` runs K stacks here, stack i in the namespace /stack<i>.
+Across hosts of one ROS domain, one host runs `part:=generator stacks:=K` (the recorder and the
+generator, waiting for K stacks) and each stack host `part:=stack<i>` (stack i alone, serving
+campaigns until Ctrl-C).
+
 Arguments: those of campaign.launch.py except problem/workers/keep_workers, plus nav2,
 params_file, params_overlay, time_scale, map_upsample (1 m map cells to Nav2 as k x k cells),
-early_verdicts and result_timeout. The plan lives in ambiegen_ros/launch_logic.py
+early_verdicts, result_timeout, known_failures, stacks and part. The plan lives in ambiegen_ros/launch_logic.py
 (plan_nav2_campaign). See docs/external_sut.md for the two-command recipe and the measured
 time-scale limits.
 """

@@ -260,6 +260,29 @@ def test_nav2_stacks_each_get_a_namespace_a_clock_and_params_of_their_own(tmp_pa
                                         share_dir=str(REPO))
 
 
+def test_a_campaign_across_hosts_splits_into_a_generator_part_and_one_part_per_stack(tmp_path):
+    common = {"output_dir": str(tmp_path), "seed": "4", "stacks": "2"}
+    head = launch_logic.plan_nav2_campaign({**common, "part": "generator"}, share_dir=str(REPO))
+    assert sorted(n.name for n in head.nodes) == ["generator", "recorder"]
+    generator = head.node("generator").parameters
+    assert (generator["min_workers"], generator["min_subscribers"]) == (2, 3)  # the stacks elsewhere
+    assert "/stack1/scan" in head.node("recorder").parameters["extra_topics"].split(",")
+    stack = launch_logic.plan_nav2_campaign({**common, "part": "stack1"}, share_dir=str(REPO))
+    assert not any(n.name in ("generator", "recorder") for n in stack.nodes)
+    assert {n.namespace for n in stack.nodes if n.executable != "sut_adapter"} == {"stack1"}
+    assert stack.node("stack1/robot_world").parameters["clock_topic"] == "/stack1/clock"
+    assert stack.node("sut_adapter_stack1").parameters["action_name"] == "/stack1/navigate_to_pose"
+    assert stack.workers == 1 and any("Ctrl-C" in note for note in stack.notes)
+    lifecycle = stack.node("stack1/lifecycle_manager_navigation").parameters
+    assert lifecycle["node_names"] == list(launch_logic.NAV2_MANAGED)  # whatever the user's params file says
+    for bad in ("stack", "stack01", "host2", "stack-1"):
+        with pytest.raises(ValueError, match="part"):
+            launch_logic.plan_nav2_campaign({**common, "part": bad}, share_dir=str(REPO))
+    with pytest.raises(ValueError, match="nav2:=ours"):
+        launch_logic.plan_nav2_campaign({**common, "stacks": "1", "part": "stack0", "nav2": "bringup"},
+                                        share_dir=str(REPO))
+
+
 def test_nav2_launch_file_takes_its_logic_from_the_plan():
     tree = ast.parse((REPO / "launch" / "nav2_campaign.launch.py").read_text())
     imported = [a.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
