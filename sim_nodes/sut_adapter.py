@@ -101,6 +101,7 @@ STAMP_CLOCKS = ("sim", "wall", "receive")
 ODOM_FRAMES = ("map", "start")
 GOAL_MODES = ("topic", "action")
 START_HEADINGS = ("route", "scenario")
+NAV2_NOT_READY_S = 1.0  # simulated s judged: Nav2 refusing its goal sooner gets it once more
 
 
 def to_map_frame(x: np.ndarray, y: np.ndarray, yaw: np.ndarray, start: tuple[float, float, float]):
@@ -142,6 +143,7 @@ class Job:
     schedule: list[tuple[float, float, int]] = field(default_factory=list)  # (start s, set point, model)
     next_element: int = 0
     start_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    nav2_first_abort: str = ""  # Nav2 refused the first goal at once: what it said (the goal went again)
 
 
 class SutAdapter:
@@ -488,6 +490,16 @@ class SutAdapter:
             self._publish_element(job.schedule[job.next_element])
             job.next_element += 1
         r = None if self.nav2 is None else self.nav2.result
+        if r is not None and r["status"] != "succeeded" and not job.nav2_first_abort and \
+                job.judge.elapsed < NAV2_NOT_READY_S:
+            # Nav2 refused the goal before the robot could move: after a world reset its controller
+            # may still see the robot where it was ("Resulting plan has 0 poses", 103). Once more; a
+            # real failure repeats and is the verdict (the first answer is recorded)
+            job.nav2_first_abort = (f"{r['status']} after {job.judge.elapsed:.1f} s (error {r['error_code']}"
+                                    f"{': ' + r['error_msg'] if r['error_msg'] else ''})")
+            self.node.logger.warning(f"Nav2 {job.nav2_first_abort} at the start; sending the goal once more")
+            self._send_goal(job)
+            return
         if r is not None and (r["status"] != "succeeded" or not self.early_verdicts):
             # Nav2's result carries no stamp: it counts at the newest pose received before it, once
             # every sample up to there is judged (an earlier verdict from them stands)
@@ -598,7 +610,7 @@ class SutAdapter:
             r = self.nav2.result or {"status": "running (cancelled: the oracle decided first)" if self.nav2.handle
                                      else "no goal", "error_code": 0, "error_msg": ""}
             outcome.metrics = {**outcome.metrics, "nav2_status": r["status"], "nav2_error_code": r["error_code"],
-                               "nav2_error_msg": r["error_msg"]}
+                               "nav2_error_msg": r["error_msg"], "nav2_first_abort": job.nav2_first_abort}
             self.nav2.cancel()
         if self.topics.get("plan"):
             length = None if self.last_plan is None else polyline_length(conversions.path_points(self.last_plan))

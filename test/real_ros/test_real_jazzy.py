@@ -420,29 +420,47 @@ def test_sut_adapter_nav2_action_mode_against_a_fake_navigate_to_pose(jazzy, wor
     assert res.metrics["nav2_status"] in ("succeeded", "running (cancelled: the oracle decided first)")
 
 
+def drive_easy_map(g, run_id: str):
+    """One easy robot map sent through the fake Nav2 graph by a DDS-backend driver; its result."""
+    from test_adapter import PROFILE, Driver, easy_robot_elements, scenario
+
+    from ambiegen_ros.ros.transport import create_node
+
+    node = create_node(f"nav2_{run_id}_driver", argv=[])
+    try:
+        problem = get_problem("robot", {"profile": PROFILE["robot"]})
+        driver = Driver(node, problem)
+        driver.wait_matched(timeout=60)
+        driver.send(run_id, [scenario(problem, easy_robot_elements())])
+        (res,) = driver.wait(run_id, 1, 90)
+    finally:
+        node.shutdown()
+    assert res is not None, g.logs()
+    return res
+
+
 def test_sut_adapter_takes_nav2s_own_abort_as_the_verdict(jazzy, workspace, graph, monkeypatch, ros_domain):
     """goal_mode:=action with its default ``early_verdicts:=false``: Nav2's own result decides. A
     navigate_to_pose server that aborts (error 102) gives FAIL(nav2_aborted) with the code and
     message (the easy map has a clearance route: a failure, not an invalid test), and the early
     verdict is recorded beside it."""
     g = fake_nav2_graph(jazzy, workspace, graph, monkeypatch, ros_domain, "abort")
-    from test_adapter import PROFILE, Driver, easy_robot_elements, scenario
-
-    from ambiegen_ros.ros.transport import create_node
-
-    node = create_node("nav2_abort_driver", argv=[])
-    try:
-        problem = get_problem("robot", {"profile": PROFILE["robot"]})
-        driver = Driver(node, problem)
-        driver.wait_matched(timeout=60)
-        driver.send("abort", [scenario(problem, easy_robot_elements())])
-        (res,) = driver.wait("abort", 1, 90)
-    finally:
-        node.shutdown()
-    assert res is not None, g.logs()
+    res = drive_easy_map(g, "abort")
     assert res.failure_kind == "nav2_aborted" and res.failed, res.detail
     assert "error 102" in res.detail and "failed to make progress" in res.detail
     # metrics travel as text (diagnostic_msgs/KeyValue)
     assert res.metrics["nav2_status"] == "aborted" and int(res.metrics["nav2_error_code"]) == 102
     assert res.metrics["decided_by"] == "stack" and res.metrics["early_verdicts"] == "False"
     assert res.metrics["early_verdict"] in ("undecided", "none", "stall", "loiter")
+    # refused before any odometry was judged: sent once more, refused again, and that is the verdict
+    assert "error 102" in res.metrics["nav2_first_abort"] and g.log("fake_nav2").count("goal ") == 2, g.log("fake_nav2")
+
+
+def test_a_goal_nav2_refuses_at_once_goes_once_more(jazzy, workspace, graph, monkeypatch, ros_domain):
+    """Nav2 refusing its goal before the robot could move (a startup race, not a verdict): the
+    adapter sends it once more, and the run is judged on the second; the first answer is kept."""
+    g = fake_nav2_graph(jazzy, workspace, graph, monkeypatch, ros_domain, "refuse-first", early_verdicts=True)
+    res = drive_easy_map(g, "refuse")
+    assert not res.failed and res.failure_kind == "none", res.detail
+    assert "error 103" in res.metrics["nav2_first_abort"] and "0 poses" in res.metrics["nav2_first_abort"]
+    assert "goal refused" in g.log("fake_nav2") and g.log("fake_nav2").count("goal ") == 2, g.log("fake_nav2")
