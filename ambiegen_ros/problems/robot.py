@@ -79,6 +79,17 @@ PROFILE_DEFAULTS = {
 }
 
 
+def fold_above(length: np.ndarray, cap: float) -> np.ndarray:
+    """F1 with a known failure's boundary ``cap`` (m; 0 = none): up to the cap the route length,
+    beyond it ``cap^2 / length``, which falls the further a map lies past the cap yet stays above
+    an invalid map's 0. A search then climbs to just below the cap and never past it, while maps
+    beyond it stay valid tests (Nav2's NavFn cannot plan past twice the map's side:
+    ``config/nav2/known_failures.yaml``; ``route_cap: 100`` on 50 m maps; docs/choices.md)."""
+    if not cap > 0:
+        return length
+    return np.where(length > cap, cap * cap / np.maximum(length, cap), length)
+
+
 @dataclass(frozen=True)
 class RobotConfig:
     """Every number of the robot case study; ``None`` fields take the profile's default."""
@@ -95,6 +106,7 @@ class RobotConfig:
     sampling: str = "markov"  # "markov" (type by the chain) | "uniform"
     diagonal: str | None = None  # diagonal step needs: both_free | one_free | always
     engine: str = "auto"  # batch planner: "auto" (numba if importable) | "numba" | "numpy" (scipy)
+    route_cap: float = 0.0  # m; > 0: F1 folds back above it (see ``fold_above``); 0 = off
     profile: str = DEFAULT_PROFILE  # replication | refined (see the module docstring)
 
     def __post_init__(self):
@@ -112,6 +124,8 @@ class RobotConfig:
             raise ScenarioError("config.resolution", "must be positive")
         if self.robot_radius < 0:
             raise ScenarioError("config.robot_radius", "must be >= 0")
+        if not self.route_cap >= 0:
+            raise ScenarioError("config.route_cap", "must be >= 0 (0 = off)")
         if self.keep_out < 0:
             raise ScenarioError("config.keep_out", "must be >= 0")
         if not 0 <= self.free_band <= self.map_size - 3:
@@ -595,11 +609,12 @@ class RobotProblem(Problem):
                                    engine=self.config.engine)
         in_domain = self.codec.in_domain(G, lengths)
         valid = np.isfinite(cells) & in_domain
-        f1 = np.where(valid, cells * self.config.resolution, 0.0)
+        length = np.where(valid, cells * self.config.resolution, 0.0)
+        f1 = fold_above(length, self.config.route_cap)
         reasons = [None if ok else (NO_PATH if dom else self.codec.domain_reason(G[i], int(lengths[i])))
                    for i, (ok, dom) in enumerate(zip(valid.tolist(), in_domain.tolist()))]
         wall_cells = grids[:, 1:-1, 1:-1].sum(axis=(1, 2))
-        return Evaluation(f1, valid, reasons, {"path_length": f1.copy(), "wall_cells": wall_cells})
+        return Evaluation(f1, valid, reasons, {"path_length": length, "wall_cells": wall_cells})
 
     # --- environment ---------------------------------------------------------------------
     def environment(self, scenario: Scenario) -> RobotMap:

@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 
 from ambiegen_ros.core.attributes import ScenarioError
 from ambiegen_ros.core.scenario import Scenario
+from ambiegen_ros.problems import get_problem
 from ambiegen_ros.problems.robot import (
     NO_PATH,
     RobotProblem,
@@ -403,3 +404,44 @@ def test_plot_renders_png(problem, tmp_path):
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 5000
     sealed = problem.codec.from_row(problem.codec.join(*genome(wall_line_at_x10())))
     assert "no path" in plot_scenario(problem, sealed).get_title()
+
+
+def test_route_cap_folds_f1_back_past_a_known_failures_boundary():
+    """NavFn's cap as ``route_cap``: a map past it scores below one at it, yet above an invalid map,
+    and the path length recorded is still the A* length."""
+    import json
+    from pathlib import Path
+
+    from ambiegen_ros.problems.robot import fold_above
+
+    trap = json.loads((Path(__file__).parents[1] / "data" / "nav2_trap_map.json").read_text())
+    plain = get_problem("robot", {**trap["problem_config"], "profile": trap["profile"]})
+    capped = get_problem("robot", {**trap["problem_config"], "profile": trap["profile"], "route_cap": 100.0})
+    sc = plain.parse(trap["scenario"])
+    a, b = plain.evaluate_scenarios([sc]), capped.evaluate_scenarios([sc])
+    assert a.f1[0] == pytest.approx(trap["f1"]) and b.valid[0]
+    assert b.metrics["path_length"][0] == pytest.approx(trap["f1"])
+    assert 0 < b.f1[0] < 100.0 and b.f1[0] == pytest.approx(100.0 ** 2 / trap["f1"])
+    lengths = np.linspace(0.0, 400.0, 81)
+    folded = fold_above(lengths, 100.0)
+    assert folded.argmax() == np.searchsorted(lengths, 100.0) and np.all(folded[lengths > 0] > 0)
+    assert np.all(np.diff(folded[lengths <= 100.0]) > 0) and np.all(np.diff(folded[lengths >= 100.0]) < 0)
+    assert np.array_equal(fold_above(lengths, 0.0), lengths)
+    with pytest.raises(ScenarioError, match="route_cap"):
+        get_problem("robot", {"route_cap": -1.0})
+
+
+def test_a_search_with_a_route_cap_stays_below_it():
+    """Goal (14, 14): without a cap the GA's best route passes 40 m; with ``route_cap: 40`` its best
+    lies at or just below 40 m, not past it."""
+    from ambiegen_ros.core.search import Search, SearchSettings
+
+    settings = SearchSettings(algorithm="ga", seed=2, population=40, offspring=20, evaluations=600)
+    free = Search(get_problem("robot", {"goal": [14, 14], "profile": "refined"}), settings).run()
+    problem = get_problem("robot", {"goal": [14, 14], "profile": "refined", "route_cap": 40.0})
+    capped = Search(problem, settings).run()
+    assert free.best_f1 > 40.0, free.best_f1
+    routes = problem.evaluate_scenarios([problem.parse(e["scenario"]) for e in capped.suite]).metrics["path_length"]
+    best = problem.parse(max(capped.suite, key=lambda e: e["f1"])["scenario"])
+    best_route = float(problem.evaluate_scenarios([best]).metrics["path_length"][0])
+    assert 30.0 < best_route <= 40.0, (best_route, sorted(routes)[-5:])
