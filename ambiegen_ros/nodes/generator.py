@@ -48,10 +48,23 @@ from ..ros.conversions import ScenarioMeta
 from ..ros.limits import check_name
 from ..ros.qos import DEFAULT, LATCHED
 from ..ros.transport import create_node
+from ..sims.known_failures import is_known
 from .execution import RemoteExecution
 from . import run_node
 
 SLICE_S = 0.05  # longest stretch of search work between two executor turns
+
+
+def loop_evaluation(outcomes: list) -> Evaluation:
+    """What an in-the-loop search is told of executed scenarios: each one's F1 (``Outcome.f1``).
+    An INVALID_TEST (no reference passes it either), an error or a timeout is no failure to climb
+    towards: F1 0, invalid. A known failure (``sims.known_failures``, e.g. NavFn's path cap) is a
+    valid test that teaches nothing new: F1 0, so the search does not climb towards it either."""
+    unusable = ("invalid_scenario", "error", "sim_timeout", "invalid_test")
+    usable = np.array([o.failure_kind not in unusable for o in outcomes])
+    f1 = np.array([o.f1 if ok and not is_known(o) else 0.0 for o, ok in zip(outcomes, usable)])
+    reasons = [None if ok else f"{o.failure_kind}: {o.detail}" for o, ok in zip(outcomes, usable)]
+    return Evaluation(f1, usable, reasons, {"failed": np.array([o.failed for o in outcomes])})
 
 
 class Generator:
@@ -208,13 +221,7 @@ class Generator:
         if any(i not in self.remote.outcomes for i in self.batch):
             return
         outcomes = self.remote.take(self.batch)  # told once: nothing of a generation is kept after
-        # an INVALID_TEST (no reference passes it either) is no failure to climb towards: F1 0, invalid
-        unusable = ("invalid_scenario", "error", "sim_timeout", "invalid_test")
-        usable = np.array([o.failure_kind not in unusable for o in outcomes])
-        f1 = np.array([o.f1 if ok else 0.0 for o, ok in zip(outcomes, usable)])
-        reasons = [None if ok else f"{o.failure_kind}: {o.detail}" for o, ok in zip(outcomes, usable)]
-        metrics = {"failed": np.array([o.failed for o in outcomes])}
-        self.search.tell(Evaluation(f1, usable, reasons, metrics))
+        self.search.tell(loop_evaluation(outcomes))
         self.batch = []
 
     def write_suite(self, result) -> None:

@@ -53,3 +53,21 @@ def test_the_robot_oracle_records_the_route_and_the_map_side():
     judge.fail("nav2_aborted", "Nav2 aborted")
     m = judge.outcome().metrics
     assert m["map_side_m"] == 40.0 and m["route_length_m"] == pytest.approx(25.0, abs=0.5)
+
+
+def test_an_in_the_loop_search_is_not_rewarded_for_a_known_failure():
+    """``nodes.generator.loop_evaluation``: a known failure stays a valid test with F1 0 (the time
+    limit it would otherwise score is the highest F1 there is); a new failure keeps its F1, an
+    invalid test is invalid."""
+    from ambiegen_ros.nodes.generator import loop_evaluation
+
+    (cap,) = known_failures.load(SHIPPED)
+    known = known_failures.mark(failure(route=120.0), [cap])
+    known.objectives = {"robot_time": 300.0}
+    new = failure(kind="collision")
+    new.objectives = {"robot_time": 300.0}
+    passed = Outcome(objectives={"robot_time": 61.5}, failed=False, failure_kind="none", detail="goal reached")
+    invalid = Outcome(objectives={"robot_time": 300.0}, failed=False, failure_kind="invalid_test", detail="no route")
+    ev = loop_evaluation([known, new, passed, invalid])
+    assert ev.valid.tolist() == [True, True, True, False]
+    assert ev.f1.tolist() == [0.0, 300.0, 61.5, 0.0]
