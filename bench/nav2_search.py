@@ -1,0 +1,137 @@
+"""A search against random sampling on Nav2 (issue 29): campaigns given the same Nav2 time, counted
+in distinct new certified failures.
+
+    python bench/nav2_search.py --setup ~/jazzy-verify/install/setup.bash --algorithm random --seed 1 --nav2-hours 1
+    python bench/nav2_search.py --setup ... --algorithm ga --mode in_the_loop --seed 1 --nav2-hours 1
+    python bench/nav2_search.py --report
+
+Each run is one ``nav2_campaign.launch.py`` campaign on the maps of ``config/robot_small.yaml``
+(goal (14, 14); ``route_cap`` 100 keeps a search off NavFn's known cap) with Nav2's own verdicts:
+``--controller dwb`` = our five Nav2 nodes with ``config/nav2/pioneer_navfn_dwb.yaml`` at time scale
+2, ``mppi`` = Jazzy's ``nav2_params.yaml`` + the overlay through ``navigation_launch.py`` at real
+time (the largest time scales that keep real time's verdicts on this 2-core machine). The campaign
+stops after ``--nav2-hours`` of simulated time (its ``time_budget`` in wall seconds, at the time
+scale). From its bag: Nav2 runs, their simulated time, failures, known failures (not counted), the
+distinct new certified failures (the campaign gallery's count: every failure has a clearance route,
+known limits excluded), and the early verdicts, counted separately. One JSON row per run is appended
+to ``bench/results/nav2_search.jsonl``, never rewritten. ``--report`` prints, per controller, each
+algorithm's runs and a one-sided Mann-Whitney U test of its distinct failures against random's.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from collections import Counter
+from datetime import datetime, timezone
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+for extra in (REPO, REPO / "test", REPO / "test" / "real_ros"):
+    sys.path.insert(0, str(extra))
+
+OUT = REPO / "bench" / "results" / "nav2_search.jsonl"
+CONTROLLERS = {  # controller: (launch arguments, time scale)
+    "dwb": ({"nav2": "ours"}, 2.0),
+    "mppi": ({"nav2": "bringup", "params_file": "{jazzy}/share/nav2_bringup/params/nav2_params.yaml"}, 1.0),
+}
+
+
+def run_one(args, install: Path, logs: Path) -> dict:
+    import jazzy_env as je
+
+    from ambiegen_ros.core.runs import versions
+    from ambiegen_ros.nodes.gallery import draw_failures
+    from ambiegen_ros.nodes.replay import recorded_scenarios
+    from ambiegen_ros.ros.runlog import summarize
+
+    extra, k = CONTROLLERS[args.controller]
+    extra = {key: value.format(jazzy=Path(args.setup).parent) for key, value in extra.items()}
+    out_dir = Path(tempfile.mkdtemp(prefix=f"{args.controller}_{args.algorithm}_s{args.seed}_", dir=logs))
+    budget = args.nav2_hours * 3600.0 / k
+    launch = "ros2 launch ambiegen_ros nav2_campaign.launch.py " + " ".join(f"{key}:={value}" for key, value in dict(
+        algorithm=args.algorithm, mode=args.mode, seed=args.seed, time_budget=budget, evaluations=100000,
+        output_dir=out_dir, time_scale=k, config_file=REPO / "config" / "robot_small.yaml", profile="refined",
+        **extra).items())
+    graph = je.Graph(out_dir)
+    t0 = time.monotonic()
+    graph.ros("launch", launch, install, je.ros_env(args.domain_id))
+    code = graph.procs["launch"].wait(budget + args.grace)
+    wall = time.monotonic() - t0
+    (mcap,) = out_dir.glob("*.mcap")
+    rec = recorded_scenarios(mcap)
+    driven = [o for o in rec.outcomes.values() if o.failure_kind not in ("invalid_scenario", "invalid_test")]
+    gallery = draw_failures(mcap, out_dir / "failures")
+    early = Counter(str(o.metrics.get("early_verdict")) for o in driven)
+    return {
+        "controller": args.controller, "algorithm": args.algorithm, "mode": args.mode, "seed": args.seed,
+        "time_scale": k, "exit": code, "wall_s": round(wall, 1), "maps": len(rec.outcomes), "nav2_runs": len(driven),
+        "nav2_hours": round(sum(float(o.metrics.get("time") or 0.0) for o in driven) / 3600.0, 3),
+        "failures": sum(o.failed for o in driven), "known_failures": gallery["known_failures"],
+        "distinct_new_failures": gallery["distinct_failures"],
+        "kinds": dict(Counter(o.failure_kind for o in driven if o.failed)),
+        "early_verdicts": dict(early), "pictures": [p["path"] for p in gallery["failure_pictures"]],
+        "unresolved": summarize(mcap)["unresolved"], "mcap": str(mcap),
+        "when": datetime.now(timezone.utc).isoformat(timespec="seconds"), "versions": versions(),
+    }
+
+
+def report() -> int:
+    from scipy.stats import mannwhitneyu
+
+    rows = [json.loads(line) for line in OUT.read_text().splitlines() if line.strip()] if OUT.exists() else []
+    for controller in sorted({r["controller"] for r in rows}):
+        mine = [r for r in rows if r["controller"] == controller]
+        print(f"## {controller}")
+        by = {}
+        for r in mine:
+            by.setdefault((r["algorithm"], r["mode"]), []).append(r)
+        for (algorithm, mode), runs in sorted(by.items()):
+            d = [r["distinct_new_failures"] for r in runs]
+            print(f"{algorithm} ({mode}): {len(runs)} runs, Nav2 hours {[r['nav2_hours'] for r in runs]}, "
+                  f"distinct new failures {d}, known {[r['known_failures'] for r in runs]}")
+        base = [r["distinct_new_failures"] for (a, _), runs in by.items() if a == "random" for r in runs]
+        for (algorithm, mode), runs in sorted(by.items()):
+            d = [r["distinct_new_failures"] for r in runs]
+            if algorithm != "random" and len(d) >= 3 and len(base) >= 3:
+                p = mannwhitneyu(d, base, alternative="greater").pvalue
+                print(f"{algorithm} ({mode}) > random: Mann-Whitney U p = {p:.3f}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--setup", default=os.path.expanduser("~/jazzy-verify/install/setup.bash"))
+    ap.add_argument("--controller", choices=sorted(CONTROLLERS), default="dwb")
+    ap.add_argument("--algorithm", choices=("random", "ga", "nsga2"), default="random")
+    ap.add_argument("--mode", choices=("surrogate", "in_the_loop"), default="in_the_loop")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--nav2-hours", type=float, default=1.0, help="simulated hours of Nav2 per run")
+    ap.add_argument("--grace", type=float, default=900.0, help="wall seconds past the budget before giving up")
+    ap.add_argument("--domain-id", type=int, default=9, help="outside the test suite's pool (10-101)")
+    ap.add_argument("--report", action="store_true")
+    args = ap.parse_args(argv)
+    if args.report:
+        return report()
+    import jazzy_env as je
+
+    os.environ[je.SETUP_VAR] = args.setup
+    info = je.probe()
+    if "skip" in info:
+        raise SystemExit(info["skip"])
+    logs = Path(tempfile.mkdtemp(prefix="nav2_search_"))
+    row = run_one(args, je.working_tree_install(logs / "ws"), logs)
+    OUT.parent.mkdir(parents=True, exist_ok=True)
+    with open(OUT, "a") as fh:  # appended, never rewritten
+        fh.write(json.dumps(row) + "\n")
+    print(json.dumps({key: row[key] for key in ("controller", "algorithm", "mode", "seed", "exit", "wall_s", "nav2_runs",
+                                                "nav2_hours", "failures", "known_failures", "distinct_new_failures",
+                                                "kinds", "early_verdicts")}), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
