@@ -15,7 +15,8 @@ scale). From its bag: Nav2 runs, their simulated time, failures, known failures 
 distinct new certified failures (the campaign gallery's count: every failure has a clearance route,
 known limits excluded), and the early verdicts, counted separately. One JSON row per run is appended
 to ``bench/results/nav2_search.jsonl``, never rewritten. ``--report`` prints, per controller, each
-algorithm's runs and a one-sided Mann-Whitney U test of its distinct failures against random's.
+algorithm's runs and, from 10 runs a side, a one-sided Mann-Whitney U test of its distinct failures
+against random's.
 """
 from __future__ import annotations
 
@@ -34,6 +35,7 @@ for extra in (REPO, REPO / "test", REPO / "test" / "real_ros"):
     sys.path.insert(0, str(extra))
 
 OUT = REPO / "bench" / "results" / "nav2_search.jsonl"
+MIN_RUNS = 10  # runs a side before a test is run: "beats random" is a claim about a distribution
 CONTROLLERS = {  # controller: (launch arguments, time scale)
     "dwb": ({"nav2": "ours"}, 2.0),
     "mppi": ({"nav2": "bringup", "params_file": "{jazzy}/share/nav2_bringup/params/nav2_params.yaml"}, 1.0),
@@ -96,7 +98,7 @@ def report() -> int:
         base = [r["distinct_new_failures"] for (a, _), runs in by.items() if a == "random" for r in runs]
         for (algorithm, mode), runs in sorted(by.items()):
             d = [r["distinct_new_failures"] for r in runs]
-            if algorithm != "random" and len(d) >= 3 and len(base) >= 3:
+            if algorithm != "random" and len(d) >= MIN_RUNS and len(base) >= MIN_RUNS:
                 p = mannwhitneyu(d, base, alternative="greater").pvalue
                 print(f"{algorithm} ({mode}) > random: Mann-Whitney U p = {p:.3f}")
     return 0

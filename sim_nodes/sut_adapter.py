@@ -104,6 +104,12 @@ START_HEADINGS = ("route", "scenario")
 NAV2_NOT_READY_S = 1.0  # simulated s judged: Nav2 refusing its goal sooner gets it once more
 
 
+def nav2_answer(result: dict, elapsed: float) -> str:
+    """Nav2's result in words: '<status> its goal after <t> s (error <code>[: <message>])'."""
+    message = f": {result['error_msg']}" if result["error_msg"] else ""
+    return f"{result['status']} its goal after {elapsed:.1f} s (error {result['error_code']}{message})"
+
+
 def to_map_frame(x: np.ndarray, y: np.ndarray, yaw: np.ndarray, start: tuple[float, float, float]):
     """Poses relative to the start pose (an odometry frame that begins where the robot was
     spawned) -> map frame."""
@@ -495,8 +501,7 @@ class SutAdapter:
             # Nav2 refused the goal before the robot could move: after a world reset its controller
             # may still see the robot where it was ("Resulting plan has 0 poses", 103). Once more; a
             # real failure repeats and is the verdict (the first answer is recorded)
-            job.nav2_first_abort = (f"{r['status']} after {job.judge.elapsed:.1f} s (error {r['error_code']}"
-                                    f"{': ' + r['error_msg'] if r['error_msg'] else ''})")
+            job.nav2_first_abort = nav2_answer(r, job.judge.elapsed)
             self.node.logger.warning(f"Nav2 {job.nav2_first_abort} at the start; sending the goal once more")
             self._send_goal(job)
             return
@@ -509,9 +514,7 @@ class SutAdapter:
                 if r["status"] == "succeeded":
                     job.judge.stack_result(True, "none", f"Nav2 reached the goal after {job.judge.elapsed:.1f} s")
                 else:
-                    job.judge.stack_result(False, "nav2_aborted", f"Nav2 {r['status']} its goal after "
-                                           f"{job.judge.elapsed:.1f} s (error {r['error_code']}"
-                                           f"{': ' + r['error_msg'] if r['error_msg'] else ''})")
+                    job.judge.stack_result(False, "nav2_aborted", f"Nav2 {nav2_answer(r, job.judge.elapsed)}")
                 self.finish(job.judge.outcome())
                 return
         if self.order.pending and now >= self._next_stream_check:
