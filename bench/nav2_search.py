@@ -10,8 +10,8 @@ Each run is one ``nav2_campaign.launch.py`` campaign on the maps of ``config/rob
 ``--controller dwb`` = our five Nav2 nodes with ``config/nav2/pioneer_navfn_dwb.yaml`` at time scale
 2, ``mppi`` = Jazzy's ``nav2_params.yaml`` + the overlay through ``navigation_launch.py`` at real
 time (the largest time scales that keep real time's verdicts on this 2-core machine). The campaign
-stops after ``--nav2-hours`` of simulated time (its ``time_budget`` in wall seconds, at the time
-scale). From its bag: Nav2 runs, their simulated time, failures, known failures (not counted), the
+stops sending maps after ``--nav2-hours`` of simulated time (its ``execution_budget`` in wall
+seconds, at the time scale); the map in flight then finishes. From its bag: Nav2 runs, their simulated time, failures, known failures (not counted), the
 distinct new certified failures (the campaign gallery's count: every failure has a clearance route,
 known limits excluded), and the early verdicts, counted separately. One JSON row per run is appended
 to ``bench/results/nav2_search.jsonl``, never rewritten. ``--report`` prints, per controller, each
@@ -55,7 +55,8 @@ def run_one(args, install: Path, logs: Path) -> dict:
     out_dir = Path(tempfile.mkdtemp(prefix=f"{args.controller}_{args.algorithm}_s{args.seed}_", dir=logs))
     budget = args.nav2_hours * 3600.0 / k
     launch = "ros2 launch ambiegen_ros nav2_campaign.launch.py " + " ".join(f"{key}:={value}" for key, value in dict(
-        algorithm=args.algorithm, mode=args.mode, seed=args.seed, time_budget=budget, evaluations=100000,
+        algorithm=args.algorithm, mode=args.mode, seed=args.seed, execution_budget=budget,
+        evaluations=100000 if args.mode == "in_the_loop" else args.evaluations,
         output_dir=out_dir, time_scale=k, config_file=REPO / "config" / "robot_small.yaml", profile="refined",
         **extra).items())
     graph = je.Graph(out_dir)
@@ -111,6 +112,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--algorithm", choices=("random", "ga", "nsga2"), default="random")
     ap.add_argument("--mode", choices=("surrogate", "in_the_loop"), default="in_the_loop")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--evaluations", type=int, default=0,
+                    help="surrogate mode: the search's surrogate evaluations (0 = the config's); Nav2 then runs its suite")
     ap.add_argument("--nav2-hours", type=float, default=1.0, help="simulated hours of Nav2 per run")
     ap.add_argument("--grace", type=float, default=900.0, help="wall seconds past the budget before giving up")
     ap.add_argument("--domain-id", type=int, default=9, help="outside the test suite's pool (10-101)")

@@ -29,6 +29,9 @@ def register(sub) -> None:
     budget = p.add_mutually_exclusive_group()
     budget.add_argument("--evaluations", type=int, help="evaluation budget (default: the paper's)")
     budget.add_argument("--time-budget", type=float, metavar="SECONDS")
+    p.add_argument("--execution-budget", type=float, metavar="SECONDS",
+                   help="stop sending scenarios this many seconds after the first; the ones sent finish and are "
+                        "logged (a real-time stack gets a fixed time; either mode)")
     p.add_argument("--population", type=int)
     p.add_argument("--offspring", type=int)
     p.add_argument("--seed", type=int, help="random seed (default: drawn and recorded)")
@@ -132,7 +135,8 @@ def cmd_campaign(args) -> int:
         domain_id=args.domain_id,
         result_timeout=args.result_timeout,
         timeout=args.timeout,
-        generator_params={} if args.max_in_flight is None else {"max_in_flight": args.max_in_flight},
+        generator_params={key: value for key, value in (("max_in_flight", args.max_in_flight),
+                                                        ("execution_budget", args.execution_budget)) if value is not None},
         sim_model=args.sim_model,
         profile=args.profile,
         overwrite=args.overwrite,

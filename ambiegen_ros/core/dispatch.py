@@ -178,6 +178,15 @@ class Dispatcher:
         self.settled[scenario_id] = worker
         return True
 
+    def withdraw(self) -> list[int]:
+        """Drop the scenarios never sent (the run's budget is spent): they leave no record, as they
+        were never published. Those sent at least once stay until they settle or time out."""
+        never = {sid for sid in self._queue if self._tickets[sid].attempts == 0}
+        for sid in never:
+            self._tickets.pop(sid)
+        self._queue = [sid for sid in self._queue if sid not in never]
+        return sorted(never)
+
     def forget(self, scenario_ids: list[int]) -> None:
         """Drop settled scenarios the caller is done with, so a long run's memory stays flat.
 

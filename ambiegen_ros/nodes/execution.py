@@ -67,6 +67,7 @@ class RemoteExecution:
         self.added = 0
         self.settled = 0
         self.published = 0
+        self.withdrawn = 0  # added but never sent: the budget ran out first
         self.failures = 0
         self.timeouts = 0
         self.errors = 0
@@ -78,6 +79,14 @@ class RemoteExecution:
         self.dispatcher.add(meta.scenario_id, meta.scenario_id)
         self.scenarios[meta.scenario_id] = (scenario, meta)
         self.added += 1
+
+    def withdraw(self) -> int:
+        """Stop: the scenarios not sent yet never will be (``Dispatcher.withdraw``); how many."""
+        withdrawn = self.dispatcher.withdraw()
+        for scenario_id in withdrawn:
+            self.scenarios.pop(scenario_id, None)
+        self.withdrawn += len(withdrawn)
+        return len(withdrawn)
 
     def next_id(self) -> int:
         return self.added

@@ -12,12 +12,17 @@ written by this node (``execution.RemoteExecution`` over ``core.dispatch``).
 
 Reproducible: a seed gives the same scenarios, F1 values and suite with any number of workers
 and any batching on their side. Each generation is told in scenario order once all its results
-are in, and no clock enters the search unless ``time_budget`` is set (a ``SIM_TIMEOUT`` result,
-by nature, depends on the clock too). This holds as long as each problem's ``evaluate`` gives a
+are in, and no clock enters the search unless ``time_budget`` or ``execution_budget`` is set (a
+``SIM_TIMEOUT`` result, by nature, depends on the clock too).
+
+A spent budget stops the sending at once, not at the end of a generation: ``execution_budget``
+(wall seconds from the first scenario sent) in either mode, and in ``in_the_loop`` also
+``time_budget``. Scenarios already sent finish and are logged; those never sent are dropped, so a
+campaign given an hour of a real-time stack takes an hour plus at most one run per worker. This holds as long as each problem's ``evaluate`` gives a
 scenario the same bits whatever it is batched with (``test/core/test_batch_invariance.py``).
 
 Parameters: problem (thermostat | robot | vehicle), algorithm (ga | nsga2 | random), evaluations
-(0 = the paper's budget), time_budget (s, 0 = none), population, offspring (0 = the paper's), seed
+(0 = the paper's budget), time_budget (s, 0 = none), execution_budget (s, 0 = none), population, offspring (0 = the paper's), seed
 (-1 = drawn and recorded), profile (fidelity profile: replication | refined; '' = the config
 file's problem_config.profile, else replication), config_file (run config YAML), mode (surrogate |
 in_the_loop), run_id, suite_file (write the final suite there as JSON; '' = none),
@@ -76,6 +81,9 @@ class Generator:
         algorithm = p("algorithm", "nsga2", "ga | nsga2 | random")
         evaluations = p("evaluations", 0, "evaluation budget (0 = the paper's, unless time_budget is set)")
         time_budget = p("time_budget", 0.0, "wall-clock budget in seconds (0 = none)")
+        self.execution_budget = p(
+            "execution_budget", 0.0, "wall seconds of sending scenarios, from the first one (0 = none); then the sent ones finish"
+        )
         population = p("population", 0, "population size (0 = the paper's)")
         offspring = p("offspring", 0, "offspring per generation (0 = the paper's)")
         seed = p("seed", -1, "random seed (-1 = drawn and recorded)")
@@ -116,6 +124,8 @@ class Generator:
         self.state = "waiting"
         self.waiting_since = time.monotonic()
         self.batch: list[int] = []  # in_the_loop: scenario ids of the rows asked last
+        self.executing_since: float | None = None
+        self.closed = False  # a budget is spent: nothing more is sent
         self.generation = 0
         self.pub_config.publish(
             conversions.run_config_message(n.new_message, n.now_ns(), self.run_id, self.config, __version__)
@@ -145,8 +155,7 @@ class Generator:
                 if self.mode == "surrogate":
                     self.state = "searching"
                 else:
-                    self.remote.begin()
-                    self.state = "executing"
+                    self.begin_execution()
         elif self.state == "searching":
             deadline = now + SLICE_S
             while time.monotonic() < deadline:
@@ -154,7 +163,7 @@ class Generator:
                     self.start_suite()
                     break
         elif self.state == "executing":
-            if self.mode == "in_the_loop" and not self.batch:
+            if self.mode == "in_the_loop" and not self.batch and not self.closed:
                 if not self.ask_batch():
                     self.finish()
                 # asking can take long (a first JIT compile): read the heartbeats and results
@@ -162,10 +171,32 @@ class Generator:
                 return
             self.remote.tick()
             self.log_worker_events()
-            if self.mode == "in_the_loop":
+            if self.mode == "in_the_loop" and not self.closed:
                 self.tell_if_complete()
-            elif self.remote.done():
+            if not self.closed and self.budget_spent(now):
+                self.close()
+            if (self.closed or self.mode == "surrogate") and self.remote.done():
                 self.finish()
+
+    def begin_execution(self) -> None:
+        self.remote.begin()
+        self.executing_since = time.monotonic()
+        self.state = "executing"
+
+    def budget_spent(self, now: float) -> bool:
+        if self.execution_budget and now - self.executing_since >= self.execution_budget:
+            return True
+        budget = self.settings.time_budget
+        return self.mode == "in_the_loop" and budget is not None and self.search.elapsed >= budget
+
+    def close(self) -> None:
+        """The budget is spent: send nothing more, finish the scenarios already sent."""
+        self.closed = True
+        self.batch = []
+        withdrawn = self.remote.withdraw()
+        self.node.logger.info(
+            f"budget spent: {withdrawn} scenarios not sent; finishing the {self.remote.dispatcher.open} already sent"
+        )
 
     def log_worker_events(self) -> None:
         """Workers lost, joined or back, as the dispatcher saw them (how long detection took)."""
@@ -198,8 +229,7 @@ class Generator:
                 self.run_id, self.remote.next_id(), 0, self.settings.seed, entry["f1"], entry["f2"], entry["valid"], entry["reason"] or ""
             )
             self.remote.add(scenario, meta)
-        self.remote.begin()
-        self.state = "executing"
+        self.begin_execution()
 
     def ask_batch(self) -> bool:
         X = self.search.ask()
@@ -218,7 +248,7 @@ class Generator:
         return True
 
     def tell_if_complete(self) -> None:
-        if any(i not in self.remote.outcomes for i in self.batch):
+        if not self.batch or any(i not in self.remote.outcomes for i in self.batch):
             return
         outcomes = self.remote.take(self.batch)  # told once: nothing of a generation is kept after
         self.search.tell(loop_evaluation(outcomes))
@@ -241,7 +271,7 @@ class Generator:
         self.node.logger.info(
             f"run {self.run_id} done: {r.published} scenarios, {r.settled} settled, "
             f"{r.failures} failures, {r.invalid_tests} invalid tests, {r.timeouts} timeouts, {r.errors} errors, "
-            f"{r.invalid} invalid"
+            f"{r.invalid} invalid" + (f"; {r.withdrawn} not sent (budget spent)" if r.withdrawn else "")
         )
         if self.exit_when_done:
             # the spin ends; run_node then waits until the last samples are acknowledged (finish_io)

@@ -273,3 +273,15 @@ def test_a_hung_worker_loses_its_queue_to_a_free_one_at_once():
     d.add(99, 99)
     sent, _ = d.tick(11.0)
     assert [(x.scenario_id, x.worker) for x in sent] == [(99, "a")]  # b is full: the stalled a, one at a time
+
+
+def test_withdraw_drops_only_what_was_never_sent():
+    """A spent budget: the queued scenarios go, the ones in flight (or sent and re-queued) stay."""
+    d = make()
+    d.heartbeat("a", 0)
+    (first,), _ = d.tick(0)  # probation: one scenario out
+    assert d.withdraw() == [i for i in range(6) if i != first.scenario_id]
+    assert d.open == 1 and not d.done()
+    sent, _ = d.tick(0.1)
+    assert sent == []  # nothing left to send
+    assert d.result(first.scenario_id, "a") and d.done()

@@ -235,6 +235,9 @@ CAMPAIGNS = {
     "robot": (None, "robot", "nsga2", 200, {"population": 20, "offspring": 20}),
     "vehicle": (None, "vehicle", "nsga2", 200, {"population": 20, "offspring": 20}),
     "in_the_loop": (None, "thermostat", "ga", 240, {"population": 30, "offspring": 30, "mode": "in_the_loop", "workers": 2}),
+    # spent before the first generation is through: what was sent finishes, the rest is never sent
+    "budget": (None, "thermostat", "ga", 240, {"population": 30, "offspring": 30, "mode": "in_the_loop",
+                                               "execution_budget": 0.001}),
     # the README's first command, smaller: refined roads searched in the loop find certified failures
     "demo": (None, "vehicle", "nsga2", 300, {"population": 50, "offspring": 50, "mode": "in_the_loop", "workers": 2,
                                              "profile": "refined"}),
@@ -313,6 +316,19 @@ def test_in_the_loop_campaign_end_to_end(campaigns):
     # in the loop every evaluation is a scenario executed by a sim node
     assert summary["scenarios_published"] == evaluations == summary["evaluations"]
     assert summary["mode"] == "in_the_loop"
+
+
+def test_a_spent_execution_budget_stops_sending_at_once_and_the_sent_scenarios_finish(campaigns):
+    """Not at the end of a generation: a real-time stack given an hour gets an hour plus one run."""
+    code, summary, out, output = campaigns["budget"]
+    assert code == 0, output[-3000:]
+    _assert_summary_consistent(summary, out)  # every scenario published has its result in the log
+    log = (out / "logs" / "generator.log").read_text()
+    withdrawn = re.search(r"budget spent: (\d+) scenarios not sent", log)
+    assert withdrawn, log[-2000:]
+    assert 1 <= summary["scenarios_published"] < 30  # one generation is 30 scenarios
+    assert summary["scenarios_published"] + int(withdrawn.group(1)) == 30
+    assert f"{withdrawn.group(1)} not sent (budget spent)" in log
 
 
 def test_a_campaign_draws_each_distinct_certified_failure(campaigns, tmp_path):
