@@ -232,7 +232,7 @@ class Campaign:
         self._start("robot_world", "sim_nodes.robot_world", ros_params(
             lockstep=True, time_scale=0.0, scan_rate=10.0, seed=spec.seed, cmd_vel_stamped=True, paired_start=True,
             **{"sim.dt": 0.1}))
-        self._start("nd_driver", "sim_nodes.nd_driver", ros_params(cmd_vel_stamped=True))
+        self._start("nd_driver", "sim_nodes.nd_driver", ros_params(cmd_vel_stamped=True, paired_start=True))
         self._start("sut_adapter", "sim_nodes.sut_adapter", ros_params(
             problem="robot", worker_id=f"sut_{self.run_id[-6:]}", profile=spec.profile, config_file=spec.config,
             stall_topic="/nd_driver/stall", plan_topic="/plan", min_result_subscribers=2, settle_time=0.1))

@@ -35,6 +35,7 @@ for extra in (REPO, REPO / "test", REPO / "test" / "real_ros"):
     sys.path.insert(0, str(extra))
 
 OUT = REPO / "bench" / "results" / "nav2_search.jsonl"
+DEFAULT_CONFIG = "config/robot_small.yaml"
 MIN_RUNS = 10  # runs a side before a test is run: "beats random" is a claim about a distribution
 CONTROLLERS = {  # controller: (launch arguments, time scale)
     "dwb": ({"nav2": "ours"}, 2.0),
@@ -57,7 +58,7 @@ def run_one(args, install: Path, logs: Path) -> dict:
     launch = "ros2 launch ambiegen_ros nav2_campaign.launch.py " + " ".join(f"{key}:={value}" for key, value in dict(
         algorithm=args.algorithm, mode=args.mode, seed=args.seed, execution_budget=budget,
         evaluations=100000 if args.mode == "in_the_loop" else args.evaluations,
-        output_dir=out_dir, time_scale=k, config_file=REPO / "config" / "robot_small.yaml", profile="refined",
+        output_dir=out_dir, time_scale=k, config_file=REPO / args.config, profile="refined",
         **extra).items())
     graph = je.Graph(out_dir)
     t0 = time.monotonic()
@@ -70,7 +71,8 @@ def run_one(args, install: Path, logs: Path) -> dict:
     gallery = draw_failures(mcap, out_dir / "failures")
     early = Counter(str(o.metrics.get("early_verdict")) for o in driven)
     return {
-        "controller": args.controller, "algorithm": args.algorithm, "mode": args.mode, "seed": args.seed,
+        "controller": args.controller, "algorithm": args.algorithm, "mode": args.mode, "config": args.config,
+        "seed": args.seed,
         "time_scale": k, "exit": code, "wall_s": round(wall, 1), "maps": len(rec.outcomes), "nav2_runs": len(driven),
         "nav2_hours": round(sum(float(o.metrics.get("time") or 0.0) for o in driven) / 3600.0, 3),
         "failures": sum(o.failed for o in driven), "known_failures": gallery["known_failures"],
@@ -91,7 +93,7 @@ def report() -> int:
         print(f"## {controller}")
         by = {}
         for r in mine:
-            by.setdefault((r["algorithm"], r["mode"]), []).append(r)
+            by.setdefault((r["algorithm"], f'{r["mode"]}, {r.get("config", DEFAULT_CONFIG)}'), []).append(r)
         for (algorithm, mode), runs in sorted(by.items()):
             d = [r["distinct_new_failures"] for r in runs]
             print(f"{algorithm} ({mode}): {len(runs)} runs, Nav2 hours {[r['nav2_hours'] for r in runs]}, "
@@ -112,6 +114,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--algorithm", choices=("random", "ga", "nsga2"), default="random")
     ap.add_argument("--mode", choices=("surrogate", "in_the_loop"), default="in_the_loop")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--config", default=DEFAULT_CONFIG,
+                    help="run config under the repository (config/robot_small_narrow.yaml: the search aimed at the stack)")
     ap.add_argument("--evaluations", type=int, default=0,
                     help="surrogate mode: the search's surrogate evaluations (0 = the config's); Nav2 then runs its suite")
     ap.add_argument("--nav2-hours", type=float, default=1.0, help="simulated hours of Nav2 per run")

@@ -62,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
     procs = Procs(args.domain_id, Path(tempfile.mkdtemp(prefix="nd_stack_")))
     procs.start("world", "sim_nodes.robot_world", lockstep=True, time_scale=0.0, scan_rate=10.0, cmd_vel_stamped=True,
                 paired_start=True, **{"sim.dt": 0.1})
-    procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True, **{"sim.safety_dist": args.safety_dist})
+    procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True, paired_start=True, **{"sim.safety_dist": args.safety_dist})
     procs.start("adapter", "sim_nodes.sut_adapter", problem="robot", worker_id="sut", profile=args.profile,
                 stall_topic="/nd_driver/stall", settle_time=0.1)
     node = create_node("nd_stack_bench", argv=[])

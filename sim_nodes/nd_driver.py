@@ -26,6 +26,10 @@ poses), ``map_topic`` (``nav_msgs/OccupancyGrid``, latched) and a goal on ``goal
 
 A new map drops the goal: nothing is commanded until the next one. Topics are not ordered among
 themselves, so a goal stamped after the map (or the initial pose) that arrives before it stays.
+With ``paired_start:=true`` (as ``robot_world``'s, for ``sut_adapter``, which stamps each run's map
+and initial pose alike) a run is planned only on the map stamped like its initial pose: on a loaded
+machine the map may arrive after the pose, the goal and the world's first scans, and planning on the
+last run's map would then steer this run by it.
 """
 from __future__ import annotations
 
@@ -63,6 +67,8 @@ class NDDriverNode:
                                                                "this close to it [m] (older odometry is ignored)"))
         self.start_yaw_tolerance = float(p("start_yaw_tolerance", 0.1, "... and heading this close to it [rad] "
                                                                        "(< 0: any heading)"))
+        self.paired = bool(p("paired_start", False, "plan a run only on the map stamped like its initial pose "
+                                                    "(sut_adapter stamps them alike; false: the latest map)"))
         self.cfg = sim_options(n, RobotSimConfig)
         self._make = n.new_message
         self.pub_cmd = n.create_publisher("geometry_msgs/msg/TwistStamped" if self.stamped else "geometry_msgs/msg/Twist",
@@ -78,6 +84,7 @@ class NDDriverNode:
             n.create_subscription("geometry_msgs/msg/PoseWithCovarianceStamped", topic["initialpose"],
                                   self.on_initialpose, DEFAULT)
         self.map: tuple[np.ndarray, float, tuple[float, float]] | None = None
+        self.map_stamp = self.pose_stamp = -1
         self.goal: tuple[float, float] | None = None
         self.goal_stamp = -1
         self.follower: RouteFollower | None = None
@@ -96,8 +103,10 @@ class NDDriverNode:
         info = msg.info
         self.map = (conversions.grid_from_message(msg), float(info.resolution),
                     (float(info.origin.position.x), float(info.origin.position.y)))
-        if self.goal_stamp <= conversions.stamp_ns(msg.header):  # a new scenario: wait for its goal (one
+        self.map_stamp = conversions.stamp_ns(msg.header)
+        if self.goal_stamp <= self.map_stamp:  # a new scenario: wait for its goal (one
             self.goal, self.follower = None, None  # stamped after this map arrived first and stays)
+        self._answer()  # paired_start: the scan that waited for this map
 
     def on_initialpose(self, msg: Any) -> None:
         """A new run starts here: drop the goal; the next plan starts from odometry that shows it
@@ -105,6 +114,7 @@ class NDDriverNode:
         ordered among themselves: a goal stamped after this pose arrived first and stays."""
         x, y = conversions.require_finite((msg.pose.pose.position.x, msg.pose.pose.position.y), "pose.pose.position")
         self.expected_start, self.start_stamp = (float(x), float(y), conversions.yaw_of(msg.pose.pose.orientation)), None
+        self.pose_stamp = conversions.stamp_ns(msg.header)
         if self.goal_stamp <= conversions.stamp_ns(msg.header):  # a goal stamped later is this run's: keep it
             self.goal, self.follower = None, None
 
@@ -144,6 +154,8 @@ class NDDriverNode:
         if self.follower is None:
             if self.expected_start is not None and (self.start_stamp is None or stamp < self.start_stamp):
                 return  # a scan from before the teleport: wait for one of the robot at its start
+            if self.paired and self.map_stamp != self.pose_stamp:
+                return  # this run's map is still on its way
             self.expected_start = None
             self._plan(stamp, angles, pose)
         follower = self.follower

@@ -52,7 +52,7 @@ def record_robot_bag(out: Path, domain: int, maps: tuple[int, ...] = MAPS) -> Pa
             procs.start("recorder", "ambiegen_ros.nodes.recorder", output=str(mcap),
                         extra_topics=",".join(STACK_TOPICS))
             procs.start("world", "sim_nodes.robot_world", **LOCKSTEP)
-            procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True, **{"sim.safety_dist": FAILING_SAFETY_DIST})
+            procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True, paired_start=True, **{"sim.safety_dist": FAILING_SAFETY_DIST})
             procs.start("adapter", "sim_nodes.sut_adapter", problem="robot", worker_id="sut", profile="refined",
                         stall_topic="/nd_driver/stall", plan_topic="/plan", settle_time=0.1, run_invalid=True)
             driver = Driver(node, problem)

@@ -65,6 +65,7 @@ HORIZONTAL, VERTICAL = 0, 1
 DIAGONAL_RULES = ("both_free", "one_free", "always")
 INFLATION_RULES = ("overlap", "centre")  # how the robot radius blocks cells (see ``inflation_footprint``)
 INFLATION_RULE = {"refined": "overlap", "replication": "centre"}
+OBJECTIVES = ("route", "narrow")  # what F1 measures (``RobotConfig.objective``)
 ENGINES = ("auto", "numba", "numpy")  # batch planner: numba when importable, else scipy
 NO_PATH = "no path from start to goal"
 
@@ -90,6 +91,49 @@ def fold_above(length: np.ndarray, cap: float) -> np.ndarray:
     return np.where(length > cap, cap * cap / np.maximum(length, cap), length)
 
 
+def clearance(grid: np.ndarray, resolution: float) -> np.ndarray:
+    """(H, W) metres from each free cell's centre to the nearest wall cell's centre (0 on walls)."""
+    from scipy.ndimage import distance_transform_edt
+
+    return distance_transform_edt(~np.asarray(grid, dtype=bool)) * resolution
+
+
+def narrow_route_metres(grid: np.ndarray, planning: np.ndarray, config: "RobotConfig") -> float:
+    """Metres of a clearance-seeking route that must run closer than ``narrow_clearance`` to a wall.
+
+    The route is what a costmap planner (NavFn over inflation costs) prefers: the shortest one that
+    keeps every cell at least ``narrow_clearance`` from walls if one exists (then 0 narrow metres),
+    else at least half a cell less, and so on down to the robot's own planning grid. Cells within
+    ``keep_out + 2`` of the start and goal never count (the start sits by the border on every map).
+    Measured on Nav2 + DWB (docs/choices.md, "A search aimed at the stack"): the more of these
+    metres, the slower Nav2 drives a metre of route, and its one new failure lay past 90 % of passes.
+    """
+    res = config.resolution
+    clear = clearance(grid, res)
+    n = config.map_size
+    ys, xs = np.mgrid[0:n, 0:n]
+    near = np.zeros((n, n), dtype=bool)
+    k = config.keep_out + 2
+    for cx, cy in (config.start, config.goal):
+        near |= (np.abs(xs - cx) <= k) & (np.abs(ys - cy) <= k)
+    wide = clear >= config.narrow_clearance
+    if math.isfinite(astar(planning | ~(wide | near), config.start, config.goal, config.diagonal)[0]):
+        return 0.0
+    t = config.narrow_clearance - 0.5 * res
+    while True:
+        blocked = planning if t <= res else planning | ~((clear >= t) | near)
+        length, path = astar(blocked, config.start, config.goal, config.diagonal)
+        if math.isfinite(length) or t <= res:
+            break
+        t -= 0.5 * res
+    if not path:
+        return 0.0
+    cells = np.array(path)
+    narrow = ~(wide | near)[cells[:, 1], cells[:, 0]]
+    steps = np.hypot(*np.diff(cells, axis=0).T) * res
+    return float(steps[narrow[1:]].sum())
+
+
 @dataclass(frozen=True)
 class RobotConfig:
     """Every number of the robot case study; ``None`` fields take the profile's default."""
@@ -107,6 +151,8 @@ class RobotConfig:
     diagonal: str | None = None  # diagonal step needs: both_free | one_free | always
     engine: str = "auto"  # batch planner: "auto" (numba if importable) | "numba" | "numpy" (scipy)
     route_cap: float = 0.0  # m; > 0: F1 folds back above it (see ``fold_above``); 0 = off
+    objective: str = "route"  # F1: "route" = the A* route length (the paper's) | "narrow" = ``narrow_route_metres``
+    narrow_clearance: float = 2.0  # m from a wall cell's centre below which a route cell is narrow ("narrow")
     profile: str = DEFAULT_PROFILE  # replication | refined (see the module docstring)
 
     def __post_init__(self):
@@ -124,6 +170,10 @@ class RobotConfig:
             raise ScenarioError("config.resolution", "must be positive")
         if self.robot_radius < 0:
             raise ScenarioError("config.robot_radius", "must be >= 0")
+        if self.objective not in OBJECTIVES:
+            raise ScenarioError("config.objective", f"unknown objective {self.objective!r}", "|".join(OBJECTIVES))
+        if not self.narrow_clearance > 0:
+            raise ScenarioError("config.narrow_clearance", "must be positive")
         if not self.route_cap >= 0:
             raise ScenarioError("config.route_cap", "must be >= 0 (0 = off)")
         if self.keep_out < 0:
@@ -564,6 +614,8 @@ class RobotProblem(Problem):
         elif overrides.get("profile", config.profile) != config.profile:
             config = config.for_profile(overrides.pop("profile"))
         super().__init__(config, **overrides)
+        if self.config.objective == "narrow":
+            self.f1_label = "narrow route [m]"
         rows = self.m_max + (2 if self.profile == "refined" else 1)  # replication: levels up to the top border
         if self.config.map_size != rows:
             raise ScenarioError("config.map_size", f"{self.config.map_size} does not match one row per element",
@@ -611,10 +663,17 @@ class RobotProblem(Problem):
         valid = np.isfinite(cells) & in_domain
         length = np.where(valid, cells * self.config.resolution, 0.0)
         f1 = fold_above(length, self.config.route_cap)
+        metrics = {"path_length": length}
+        if self.config.objective == "narrow":
+            # past the cap a map keeps the same share of its narrow metres as of its folded length
+            narrow = np.array([narrow_route_metres(grids[i], planning[i], self.config) if ok else 0.0
+                               for i, ok in enumerate(valid.tolist())])
+            f1 = narrow * np.divide(f1, length, out=np.zeros_like(f1), where=length > 0)
+            metrics["narrow_m"] = narrow
         reasons = [None if ok else (NO_PATH if dom else self.codec.domain_reason(G[i], int(lengths[i])))
                    for i, (ok, dom) in enumerate(zip(valid.tolist(), in_domain.tolist()))]
         wall_cells = grids[:, 1:-1, 1:-1].sum(axis=(1, 2))
-        return Evaluation(f1, valid, reasons, {"path_length": length, "wall_cells": wall_cells})
+        return Evaluation(f1, valid, reasons, {**metrics, "wall_cells": wall_cells})
 
     # --- environment ---------------------------------------------------------------------
     def environment(self, scenario: Scenario) -> RobotMap:

@@ -229,6 +229,21 @@ def test_search_respects_budget_and_reports_positive_objectives(algorithm):
     assert np.allclose(PROBLEM.evaluate_scenarios(scenarios).f1, f1)
 
 
+def test_a_population_suite_hands_on_every_feasible_member_best_first():
+    """``suite: population``: the front and more (for a slow stack that can run more maps than a
+    front holds), all above alpha, best F1 first; the front is among them."""
+    front = Search(PROBLEM, SearchSettings(algorithm="nsga2", seed=3, evaluations=400)).run()
+    search = Search(PROBLEM, SearchSettings(algorithm="nsga2", seed=3, evaluations=400, suite="population"))
+    everyone = search.run()
+    f1 = [e["f1"] for e in everyone.suite]
+    assert f1 == sorted(f1, reverse=True) and all(v > PROBLEM.alpha for v in f1)
+    pop_f1 = search._algorithm.pop.get("f1").astype(float)
+    assert len(everyone.suite) == int((pop_f1 > PROBLEM.alpha).sum()) > len(front.suite)
+    assert {json.dumps(e["scenario"]) for e in front.suite} <= {json.dumps(e["scenario"]) for e in everyone.suite}
+    with pytest.raises(ValueError, match="suite"):
+        SearchSettings(suite="all").resolved(PROBLEM)
+
+
 def test_search_improves_over_its_initial_population():
     result = Search(PROBLEM, SearchSettings(algorithm="ga", seed=4, evaluations=600)).run()
     assert result.history[-1]["best_f1"] > result.history[0]["best_f1"]

@@ -445,3 +445,54 @@ def test_a_search_with_a_route_cap_stays_below_it():
     best = problem.parse(max(capped.suite, key=lambda e: e["f1"])["scenario"])
     best_route = float(problem.evaluate_scenarios([best]).metrics["path_length"][0])
     assert 30.0 < best_route <= 40.0, (best_route, sorted(routes)[-5:])
+
+
+def _channel_map(width: int) -> np.ndarray:
+    """A 50 x 50 room split by two full-height walls at x = 7 and x = 8 + width: the route from
+    (1, 1) to (14, 14) goes up to a door in the first (y 40..42), down the channel between them and
+    out of a door in the second (y 10..12)."""
+    grid = np.zeros((N, N), dtype=bool)
+    grid[0, :] = grid[-1, :] = grid[:, 0] = grid[:, -1] = True
+    right = 8 + width
+    grid[:, 7] = grid[:, right] = True
+    grid[40:43, 7] = False
+    grid[10:13, right] = False
+    return grid
+
+
+def test_narrow_route_metres_count_a_channel_the_route_cannot_avoid():
+    """Issue 29's objective: a 2 m channel is narrow along its length, a 4 m one is not (its middle
+    keeps 2 m from both walls), and a room without walls has no narrow metre (the start's corner is
+    exempt)."""
+    from ambiegen_ros.problems.robot import RobotConfig, narrow_route_metres
+
+    config = RobotConfig(goal=(14, 14), profile="refined", objective="narrow")
+    narrow, wide = _channel_map(2), _channel_map(4)
+    assert astar(narrow, config.start, config.goal)[0] < math.inf and astar(wide, config.start, config.goal)[0] < math.inf
+    assert narrow_route_metres(narrow, narrow, config) >= 28.0  # the channel from y 40 down to y 12
+    assert narrow_route_metres(wide, wide, config) <= 6.0  # at most the doors
+    empty = _channel_map(2)
+    empty[:, 7] = empty[:, 10] = False
+    empty[0, :] = empty[-1, :] = empty[:, 0] = empty[:, -1] = True
+    assert narrow_route_metres(empty, empty, config) == 0.0
+
+
+def test_the_narrow_objective_scores_maps_by_narrow_metres_and_keeps_the_route_cap():
+    """F1 = narrow metres (metric ``narrow_m``) beside the route length; past the cap a map keeps the
+    same share of them as of its folded length, so a search does not climb past NavFn's cap."""
+    rng = np.random.default_rng(4)
+    base = {"goal": [14, 14], "profile": "refined"}
+    route = get_problem("robot", {**base, "route_cap": 30.0})
+    narrow = get_problem("robot", {**base, "route_cap": 30.0, "objective": "narrow"})
+    X = route.sample_rows(60, rng)
+    a, b = route.evaluate_rows(X), narrow.evaluate_rows(X)
+    assert np.array_equal(a.valid, b.valid) and np.array_equal(a.metrics["path_length"], b.metrics["path_length"])
+    length, n = b.metrics["path_length"], b.metrics["narrow_m"]
+    assert np.all(n[~b.valid] == 0) and n.max() > 0 and np.all(n <= length + 1e-9)
+    inside = b.valid & (length <= 30.0)
+    assert np.allclose(b.f1[inside], n[inside])
+    past = b.valid & (length > 30.0)
+    assert past.any() and np.allclose(b.f1[past], n[past] * (30.0 / length[past]) ** 2)
+    assert narrow.f1_label == "narrow route [m]"
+    with pytest.raises(ScenarioError, match="objective"):
+        get_problem("robot", {"objective": "turning"})

@@ -38,7 +38,7 @@ def test_the_nd_stack_on_rclpy_gives_the_in_process_verdicts_on_a_loaded_machine
         wires = [full.execute(sc, seed=0) for sc in maps]
     g, env = graph(), ros_env(ros_domain)
     g.ros("world", f"ros2 run ambiegen_ros robot_world {ros_args(**LOCKSTEP)}", workspace, env)
-    g.ros("nd", "ros2 run ambiegen_ros nd_driver " + ros_args(cmd_vel_stamped=True,
+    g.ros("nd", "ros2 run ambiegen_ros nd_driver " + ros_args(cmd_vel_stamped=True, paired_start=True,
                                                                 **{"sim.safety_dist": FAILING_SAFETY_DIST}),
           workspace, env)
     g.ros("adapter", "ros2 run ambiegen_ros sut_adapter " + ros_args(

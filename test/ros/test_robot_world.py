@@ -117,7 +117,7 @@ def test_the_nd_stack_behind_the_adapter_gives_the_in_process_verdicts_on_a_load
     assert {w.failure_kind for w in wires[:-1]} >= {"none", "stall", "loiter"}  # the maps give every kind
     procs, node = graph()
     procs.start("world", "sim_nodes.robot_world", **LOCKSTEP)
-    procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True, **{"sim.safety_dist": FAILING_SAFETY_DIST})
+    procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True, paired_start=True, **{"sim.safety_dist": FAILING_SAFETY_DIST})
     procs.start("adapter", "sim_nodes.sut_adapter", problem="robot", worker_id="sut", profile="refined",
                 stall_topic="/nd_driver/stall", plan_topic="/plan", settle_time=0.1, run_invalid=True)
     driver = Driver(node, p)
@@ -149,7 +149,7 @@ def test_a_failure_without_a_plan_says_so(graph):
     p = get_problem("robot", {"profile": "refined"})
     procs, node = graph()
     procs.start("world", "sim_nodes.robot_world", **LOCKSTEP)
-    procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True, plan_topic="/nd/plan",
+    procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True, paired_start=True, plan_topic="/nd/plan",
                 **{"sim.safety_dist": FAILURES["safety_dist"]})
     procs.start("adapter", "sim_nodes.sut_adapter", problem="robot", worker_id="sut", profile="refined",
                 stall_topic="/nd_driver/stall", plan_topic="/plan", settle_time=0.1)
@@ -203,7 +203,7 @@ def test_a_stack_campaign_logs_a_robot_bag_that_replays_to_its_verdicts(tmp_path
     # --execute``, the recorded seed): every verdict and objective is the one in the log
     procs, _ = graph()
     procs.start("world", "sim_nodes.robot_world", seed=1, **LOCKSTEP)
-    procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True)
+    procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True, paired_start=True)
     procs.start("adapter", "sim_nodes.sut_adapter", problem="robot", worker_id="sut_replay", profile="replication",
                 stall_topic="/nd_driver/stall", plan_topic="/plan", settle_time=0.1)
     report_path = tmp_path / "replay.json"
@@ -214,3 +214,49 @@ def test_a_stack_campaign_logs_a_robot_bag_that_replays_to_its_verdicts(tmp_path
     report = json.loads(report_path.read_text())
     assert report["settled"] == report["scenarios"] == len(rec.scenarios)
     assert report["changes"] == {"none": len(rec.scenarios)}, report["entries"]
+
+
+def _nd_driver_fed(name: str, paired: bool):
+    """An ``nd_driver`` in this process, its handlers fed in the order a loaded machine delivered
+    them when map 12 of the busy-loop test above stalled at its start: the last run's map, then
+    this run's initial pose, goal, odometry and scan, then this run's map (stamped like the pose)."""
+    from types import SimpleNamespace
+
+    from ambiegen_ros.ros.transport import create_node
+    from sim_nodes.nd_driver import NDDriverNode
+
+    names = ("map", "scan", "odom", "goal", "initialpose", "cmd_vel", "plan", "stall")
+    argv = ["x", "--ros-args", "-p", f"paired_start:={str(paired).lower()}"]
+    for topic in names:
+        argv += ["-p", f"{topic}_topic:=/{name}/{topic}"]
+    d = NDDriverNode(node=create_node(name, argv=argv, backend="dds"))
+    make = d.node.new_message
+    room = np.zeros((10, 10), dtype=bool)
+    room[0, :] = room[-1, :] = room[:, 0] = room[:, -1] = True
+    last_run = room.copy()
+    last_run[0:8, 3] = True  # a wall between the start and the goal: the route goes round it
+    ms = 10**9
+    d.on_map(conversions.occupancy_grid(make, 100 * ms, SimpleNamespace(grid=last_run, resolution=1.0)))
+    start = conversions.pose(make, 1.5, 1.5)
+    d.on_initialpose(make("geometry_msgs/msg/PoseWithCovarianceStamped", header=conversions.header(make, 200 * ms),
+                          pose=make("geometry_msgs/msg/PoseWithCovariance", pose=start)))
+    d.on_goal(conversions.pose_stamped(make, 300 * ms, 5.5, 1.5))
+    d.on_odom(conversions.odometry(make, 400 * ms, 1.5, 1.5, 0.0))
+    d.on_scan(conversions.laser_scan(make, 400 * ms, "base_link", -1.5, 1.5, np.full(31, 3.0), 8.0))
+    planned_early = d.follower
+    d.on_map(conversions.occupancy_grid(make, 200 * ms, SimpleNamespace(grid=room, resolution=1.0)))
+    route = None if d.follower is None else d.follower.waypoints
+    d.node.shutdown()
+    return planned_early, route
+
+
+def test_nd_driver_plans_a_run_on_its_own_map_when_that_map_arrives_last(ros_domain, monkeypatch):
+    """``paired_start``: the route is planned on this run's map once it arrives (a straight 4 m in
+    the open room), never on the last run's; without it the driver plans at once on the stale map,
+    round a wall this run does not have (the stall at the start that the loaded machine showed)."""
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(ros_domain))
+    early, route = _nd_driver_fed("nd_paired", paired=True)
+    assert early is None and route is not None
+    assert np.all(np.abs(route[:, 1] - 1.5) < 1e-9), route  # along y = 1.5: the open room's route
+    stale, _ = _nd_driver_fed("nd_unpaired", paired=False)
+    assert stale is not None and np.any(stale.waypoints[:, 1] > 2.0), stale.waypoints  # round the old wall
