@@ -13,17 +13,18 @@ written by this node (``execution.RemoteExecution`` over ``core.dispatch``).
 Reproducible: a seed gives the same scenarios, F1 values and suite with any number of workers
 and any batching on their side. Each generation is told in scenario order once all its results
 are in, and no clock enters the search unless ``time_budget`` or ``execution_budget`` is set (a
-``SIM_TIMEOUT`` result, by nature, depends on the clock too).
+``SIM_TIMEOUT`` result, by nature, depends on the clock too). This holds as long as each problem's
+``evaluate`` gives a scenario the same bits whatever it is batched with
+(``test/core/test_batch_invariance.py``).
 
 A spent budget stops the sending at once, not at the end of a generation: ``execution_budget``
 (wall seconds from the first scenario sent) in either mode, and in ``in_the_loop`` also
 ``time_budget``. Scenarios already sent finish and are logged; those never sent are dropped, so a
-campaign given an hour of a real-time stack takes an hour plus at most one run per worker. This holds as long as each problem's ``evaluate`` gives a
-scenario the same bits whatever it is batched with (``test/core/test_batch_invariance.py``).
+campaign given an hour of a real-time stack takes an hour plus at most one run per worker.
 
 Parameters: problem (thermostat | robot | vehicle), algorithm (ga | nsga2 | random), evaluations
-(0 = the paper's budget), time_budget (s, 0 = none), execution_budget (s, 0 = none), population, offspring (0 = the paper's), seed
-(-1 = drawn and recorded), profile (fidelity profile: replication | refined; '' = the config
+(0 = the paper's budget), time_budget (s, 0 = none), execution_budget (s, 0 = none), population,
+offspring (0 = the paper's), seed (-1 = drawn and recorded), profile (fidelity profile: replication | refined; '' = the config
 file's problem_config.profile, else replication), config_file (run config YAML), mode (surrogate |
 in_the_loop), run_id, suite_file (write the final suite there as JSON; '' = none),
 min_subscribers, min_workers, subscriber_wait (s), exit_when_done, status_period (s),
