@@ -115,7 +115,7 @@ class NDDriverNode:
         x, y = conversions.require_finite((msg.pose.pose.position.x, msg.pose.pose.position.y), "pose.pose.position")
         self.expected_start, self.start_stamp = (float(x), float(y), conversions.yaw_of(msg.pose.pose.orientation)), None
         self.pose_stamp = conversions.stamp_ns(msg.header)
-        if self.goal_stamp <= conversions.stamp_ns(msg.header):  # a goal stamped later is this run's: keep it
+        if self.goal_stamp <= self.pose_stamp:  # a goal stamped later is this run's: keep it
             self.goal, self.follower = None, None
 
     def on_goal(self, msg: Any) -> None:

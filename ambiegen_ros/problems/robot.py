@@ -111,12 +111,7 @@ def narrow_route_metres(grid: np.ndarray, planning: np.ndarray, config: "RobotCo
     """
     res = config.resolution
     clear = clearance(grid, res)
-    n = config.map_size
-    ys, xs = np.mgrid[0:n, 0:n]
-    near = np.zeros((n, n), dtype=bool)
-    k = config.keep_out + 2
-    for cx, cy in (config.start, config.goal):
-        near |= (np.abs(xs - cx) <= k) & (np.abs(ys - cy) <= k)
+    near = keep_out_mask(config, config.keep_out + 2)
     wide = clear >= config.narrow_clearance
     if math.isfinite(astar(planning | ~(wide | near), config.start, config.goal, config.diagonal)[0]):
         return 0.0
@@ -204,9 +199,10 @@ class RobotConfig:
 
 
 # --- grids ---------------------------------------------------------------------------------
-def keep_out_mask(config: RobotConfig) -> np.ndarray:
-    """(H, W) True on the start/goal keep-out squares, where walls are never placed."""
-    n, k = config.map_size, config.keep_out
+def keep_out_mask(config: RobotConfig, radius: int | None = None) -> np.ndarray:
+    """(H, W) True on the start/goal keep-out squares, where walls are never placed (Chebyshev
+    ``radius`` cells around each; default ``keep_out``)."""
+    n, k = config.map_size, config.keep_out if radius is None else radius
     ys, xs = np.mgrid[0:n, 0:n]
     mask = np.zeros((n, n), dtype=bool)
     for cx, cy in (config.start, config.goal):
