@@ -13,6 +13,11 @@ their F2 is the distance to the nearest other member of that population (written
 
 The budget counts every evaluation, the initial population included; the last generation is
 truncated so a run never evaluates more than ``evaluations`` scenarios.
+
+``restarts: R`` splits the budget into R independent searches run one after the other, the first
+with the run's seed and each next with a seed derived from it (``restart_seed``). Their suites
+interleave, best of each first: one converged population fills a suite with near-copies of one
+structure, which a slow system under test then runs over and over (issue 29's Nav2 measurement).
 """
 from __future__ import annotations
 
@@ -59,6 +64,7 @@ class SearchSettings:
     crossover_rate: float = 1.0
     suite_size: int = 10
     suite: str = "best"  # "best": the paper's (SO: the suite_size best; MO: the feasible front) | "population"
+    restarts: int = 1  # independent searches sharing the budget; their suites interleave (not random search's)
 
     def resolved(self, problem: Problem) -> "SearchSettings":
         """Fill unset values from the problem's paper budget and check them."""
@@ -79,6 +85,11 @@ class SearchSettings:
                 raise ValueError(f"{name}: must be >= 2")
         if out.evaluations is not None and out.evaluations < 1:
             raise ValueError("evaluations: must be >= 1")
+        if out.restarts < 1:
+            raise ValueError("restarts: must be >= 1")
+        if out.evaluations is not None and out.evaluations < out.restarts * out.population:
+            raise ValueError(f"restarts: {out.restarts} searches need at least {out.restarts * out.population} "
+                             f"evaluations (a population each), not {out.evaluations}")
         if out.time_budget is not None and out.time_budget <= 0:
             raise ValueError("time_budget: must be > 0 seconds")
         return out
@@ -107,6 +118,20 @@ def non_dominated(f1: np.ndarray, f2: np.ndarray, feasible: np.ndarray) -> np.nd
     return idx[np.sort(front)]
 
 
+def restart_seed(seed: int, restart: int) -> int:
+    """The seed of restart ``restart`` of a run seeded ``seed``: the run's own for the first, so a run
+    of R restarts begins as a run without any; independent streams after (numpy's SeedSequence)."""
+    if restart == 0:
+        return int(seed)
+    return int(np.random.SeedSequence([int(seed), int(restart)]).generate_state(1)[0] % 2**31)
+
+
+def interleave(suites: list[Population]) -> Population:
+    """Round robin over suites, each in its own order: the best of every restart first."""
+    rows = [pop[i] for i in range(max((len(p) for p in suites), default=0)) for pop in suites if i < len(pop)]
+    return Population.create(*rows) if rows else Population.empty()
+
+
 class Search:
     """One run of one algorithm on one problem; ask/tell or ``run()`` with the surrogate."""
 
@@ -120,26 +145,35 @@ class Search:
         self._start = time.perf_counter()
         self._pending: Population | np.ndarray | None = None
         s = self.settings
-        if s.algorithm == "random":
+        if s.algorithm == "random":  # samples are independent already: restarts change nothing
             self._rng = np.random.default_rng(s.seed)
             self._archive = Population.empty()
             self._algorithm = None
             return
         mo = s.algorithm == "nsga2"
         self._pymoo_problem = CaseStudyProblem(problem, n_obj=2 if mo else 1, n_ieq_constr=1 if mo else 0)
+        self._restart = 0
+        self._finished: list[Population] = []  # the suites of the restarts done
+        self._begin_restart()
+
+    def _begin_restart(self) -> None:
+        s = self.settings
+        self._restart_evaluations, self._restart_start = self.evaluations, time.perf_counter()
         operators = dict(
             pop_size=s.population,
             n_offsprings=s.offspring,
             sampling=ScenarioSampling(),
             crossover=OnePointCrossover(prob=s.crossover_rate),
             mutation=ScenarioMutation(prob=s.mutation_rate),
-            eliminate_duplicates=ScenarioDuplicateElimination(problem),
+            eliminate_duplicates=ScenarioDuplicateElimination(self.problem),
         )
         # a case study may replace some for its profile (the vehicle's replication profile compares
         # duplicates road by road)
-        operators.update(problem.search_operators(s))
-        self._algorithm = NSGA2(**operators) if mo else GA(**operators)
-        self._algorithm.setup(self._pymoo_problem, termination=NoTermination(), seed=s.seed, verbose=False)
+        operators.update(self.problem.search_operators(s))
+        algorithm = NSGA2 if self._pymoo_problem.n_obj == 2 else GA
+        self._algorithm = algorithm(**operators)
+        seed = restart_seed(s.seed, self._restart)
+        self._algorithm.setup(self._pymoo_problem, termination=NoTermination(), seed=seed, verbose=False)
 
     # --- budget --------------------------------------------------------------------------
     @property
@@ -151,6 +185,30 @@ class Search:
         if self.settings.evaluations is None:
             return None
         return max(self.settings.evaluations - self.evaluations, 0)
+
+    def _restart_left(self) -> int | None:
+        """Evaluations left in the current restart's share (None when only a time budget is set)."""
+        s = self.settings
+        if s.evaluations is None:
+            return None
+        share = s.evaluations // s.restarts + (self._restart < s.evaluations % s.restarts)
+        return share - (self.evaluations - self._restart_evaluations)
+
+    def _restart_spent(self) -> bool:
+        """Has the current restart used its share (evaluations or time) of the budget?"""
+        left, s = self._restart_left(), self.settings
+        if left is not None and left <= 0:
+            return True
+        return s.time_budget is not None and time.perf_counter() - self._restart_start >= s.time_budget / s.restarts
+
+    def _next_restart(self) -> bool:
+        """Close the current restart and begin the next; False when it was the last."""
+        if self._algorithm is None or self._restart + 1 >= self.settings.restarts:
+            return False
+        self._finished.append(self.suite_population(this_restart=True))
+        self._restart += 1
+        self._begin_restart()
+        return True
 
     def done(self) -> bool:
         s = self.settings
@@ -167,6 +225,8 @@ class Search:
             raise RuntimeError("ask() called twice without tell()")
         if self.done():
             return None
+        if self._algorithm is not None and self._restart_spent():
+            self._next_restart()
         remaining = self.remaining()
         if self._algorithm is None:
             n = self.settings.population if remaining is None else min(self.settings.population, remaining)
@@ -174,8 +234,10 @@ class Search:
             self._pending = Population.new("X", rows)
         else:
             pop = self._algorithm.ask()
-            if pop is None or len(pop) == 0:
-                return None
+            if pop is None or len(pop) == 0:  # nothing new can be bred: the next restart, if any
+                return self.ask() if self._next_restart() else None
+            if remaining is not None:
+                remaining = min(remaining, self._restart_left())
             if remaining is not None and len(pop) > remaining:
                 pop = pop[:remaining]
             self._pending = pop
@@ -271,14 +333,17 @@ class Search:
             }
         )
 
-    def suite_population(self) -> Population:
+    def suite_population(self, this_restart: bool = False) -> Population:
         """SO: the 10 best; MO: the feasible Pareto front (F1 > alpha); random: the 10 best samples.
 
         ``suite: population``: the whole final population above alpha (MO) or valid (SO), best F1
         first. For a slow system under test that can run more maps than a front holds: a front of
-        3 leaves most of an hour of Nav2 unused, while NSGA-II's population stays spread by F2."""
+        3 leaves most of an hour of Nav2 unused, while NSGA-II's population stays spread by F2.
+        With restarts, the restarts' suites interleave (``this_restart``: the current one's only)."""
         if self._algorithm is None:
             return self._archive
+        if not this_restart and self._finished:
+            return interleave([*self._finished, self.suite_population(this_restart=True)])
         pop = self._algorithm.pop
         if self.settings.suite == "population":
             f1 = pop.get("f1").astype(float)

@@ -20,7 +20,7 @@ from ambiegen_ros.core.operators import (
 )
 from ambiegen_ros.core.runs import read_run, write_run
 from ambiegen_ros.core.scenario import Scenario
-from ambiegen_ros.core.search import Search, SearchSettings
+from ambiegen_ros.core.search import Search, SearchSettings, restart_seed
 from toy_problem import ToyProblem
 
 PROBLEM = ToyProblem()
@@ -242,6 +242,25 @@ def test_a_population_suite_hands_on_every_feasible_member_best_first():
     assert {json.dumps(e["scenario"]) for e in front.suite} <= {json.dumps(e["scenario"]) for e in everyone.suite}
     with pytest.raises(ValueError, match="suite"):
         SearchSettings(suite="all").resolved(PROBLEM)
+
+
+def test_restarts_share_the_budget_and_interleave_their_suites():
+    """``restarts: 2``: two independent searches, half the budget each; the first is the run's own
+    seed (a run without restarts on its half), the second a derived one; their suites alternate."""
+    settings = dict(algorithm="nsga2", suite="population")
+    both = Search(PROBLEM, SearchSettings(seed=3, evaluations=400, restarts=2, **settings)).run()
+    first = Search(PROBLEM, SearchSettings(seed=3, evaluations=200, **settings)).run()
+    second = Search(PROBLEM, SearchSettings(seed=restart_seed(3, 1), evaluations=200, **settings)).run()
+    assert both.evaluations == 400 and restart_seed(3, 1) != 3
+    scenarios = [json.dumps(e["scenario"]) for e in both.suite]
+    a, b = ([json.dumps(e["scenario"]) for e in r.suite] for r in (first, second))
+    assert a != b, "a restart is its own search"
+    n = min(len(a), len(b))
+    assert scenarios[: 2 * n : 2] == a[:n] and scenarios[1 : 2 * n : 2] == b[:n]
+    assert sorted(scenarios) == sorted(a + b)
+    assert [h["best_f1"] for h in both.history] == sorted(h["best_f1"] for h in both.history)
+    with pytest.raises(ValueError, match="restarts"):
+        SearchSettings(evaluations=30, restarts=2).resolved(PROBLEM)  # a population (20) each: 40
 
 
 def test_search_improves_over_its_initial_population():

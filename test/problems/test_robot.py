@@ -496,3 +496,20 @@ def test_the_narrow_objective_scores_maps_by_narrow_metres_and_keeps_the_route_c
     assert narrow.f1_label == "narrow route [m]"
     with pytest.raises(ScenarioError, match="objective"):
         get_problem("robot", {"objective": "turning"})
+
+
+def test_the_restarts_config_hands_nav2_different_maps_first():
+    """``config/robot_small_narrow_restarts.yaml``: 16 searches, so the head of the suite (what an
+    hour of Nav2 runs) is 16 different maps, each the best of its own search and above alpha."""
+    from pathlib import Path
+
+    from ambiegen_ros.core.search import Search
+    from ambiegen_ros.run_config import make_run
+
+    config = Path(__file__).resolve().parents[2] / "config" / "robot_small_narrow_restarts.yaml"
+    problem, settings = make_run(None, config, seed=1, evaluations=16 * 200)
+    assert settings.restarts == 16 and problem.config.objective == "narrow"
+    head = Search(problem, settings).run().suite[:16]
+    grids = {problem.environment(problem.parse(e["scenario"])).grid.tobytes() for e in head}
+    assert len(head) == 16 and len(grids) == 16
+    assert all(e["f1"] > problem.alpha for e in head)
