@@ -48,9 +48,11 @@ def _robot(problem, scenario, outcome, ax) -> None:
         ax.plot(waypoints[:, 0], waypoints[:, 1], "--o", color="tab:blue", lw=1, ms=3, label="route")
     traj = outcome.trajectory
     if traj is not None and len(traj):
-        t = outcome.timeline["t"] if outcome.timeline else np.arange(len(traj))
+        # a logged result's path has no times (one stamp for all poses): coloured by order, said so
+        timed = bool(outcome.timeline)
+        t = outcome.timeline["t"] if timed else np.arange(len(traj))
         sc = ax.scatter(traj[:, 0], traj[:, 1], c=t, cmap="viridis", s=2, zorder=4)
-        ax.figure.colorbar(sc, ax=ax, fraction=0.046, pad=0.04, label="time [s]")
+        ax.figure.colorbar(sc, ax=ax, fraction=0.046, pad=0.04, label="time [s]" if timed else "pose, in order driven")
     ax.plot(*env.start_m, "o", color="tab:green", ms=9, label="start")
     ax.plot(*env.goal_m, "*", color="tab:red", ms=13, label="goal")
     ax.set_xlim(0, w * res)

@@ -598,3 +598,24 @@ def test_plot_execution_draws_each_problem(tmp_path, problems):
         out = full_model_executor(p, **opts).execute(sc)
         path = save_execution_plot(p, sc, out, tmp_path / f"{p.name}.png")
         assert path.stat().st_size > 10_000
+
+
+
+def test_a_logged_robot_path_without_times_is_not_coloured_as_seconds(problems):
+    """A result read from a bag has its path but no times: the colour bar says pose order, while
+    a full-model run's says seconds."""
+    import dataclasses
+
+    import matplotlib.pyplot as plt
+
+    from ambiegen_ros.viz.execution import plot_execution
+
+    p = problems["robot"]
+    sc = scenario(p, easy_robot_elements())
+    out = full_model_executor(p, timeout=20.0, **FIXED).execute(sc)
+    labels = []
+    for o in (out, dataclasses.replace(out, timeline=None)):
+        ax = plot_execution(p, sc, o)
+        labels.append(ax.figure.axes[-1].get_ylabel())
+        plt.close(ax.figure)
+    assert labels == ["time [s]", "pose, in order driven"]
