@@ -87,7 +87,7 @@ class SearchSettings:
             raise ValueError("evaluations: must be >= 1")
         if out.restarts < 1:
             raise ValueError("restarts: must be >= 1")
-        if out.evaluations is not None and out.evaluations < out.restarts * out.population:
+        if out.restarts > 1 and out.evaluations is not None and out.evaluations < out.restarts * out.population:
             raise ValueError(f"restarts: {out.restarts} searches need at least {out.restarts * out.population} "
                              f"evaluations (a population each), not {out.evaluations}")
         if out.time_budget is not None and out.time_budget <= 0:

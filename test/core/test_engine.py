@@ -261,6 +261,7 @@ def test_restarts_share_the_budget_and_interleave_their_suites():
     assert [h["best_f1"] for h in both.history] == sorted(h["best_f1"] for h in both.history)
     with pytest.raises(ValueError, match="restarts"):
         SearchSettings(evaluations=30, restarts=2).resolved(PROBLEM)  # a population (20) each: 40
+    assert SearchSettings(evaluations=10).resolved(PROBLEM).evaluations == 10  # no restarts: less than a population is fine
 
 
 def test_search_improves_over_its_initial_population():
