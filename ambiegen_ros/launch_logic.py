@@ -396,6 +396,9 @@ def summary_table(summary: dict[str, Any]) -> str:
                 rows.append(("pictures", f"{len(pictures) - 3} more in {Path(pictures[0]['path']).parent}"))
             if summary.get("same_failure_pair"):
                 rows.append(("same failure", f"{summary['same_failure_pair']['path']}  (two failures counted as one)"))
+        if summary.get("near_misses"):
+            rows.append(("near misses", f"{summary['near_misses']}  (passes that needed Nav2's recoveries: "
+                                        "nav2_recoveries in their metrics)"))
         if summary.get("invalid_tests"):
             rows.append(("invalid tests", f"{summary['invalid_tests']}  (no reference passes them either: "
                                           "not failures of the system under test)"))

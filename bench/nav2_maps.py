@@ -205,7 +205,8 @@ def run_batch(args) -> int:
                    "scenario": sc.to_dict(),
                    "failure_kind": res.failure_kind, "failed": res.failed, "detail": res.detail,
                    "nav2_status": m.get("nav2_status"), "nav2_error_code": m.get("nav2_error_code"),
-                   "nav2_error_msg": m.get("nav2_error_msg"), "plans": m.get("plans"),
+                   "nav2_error_msg": m.get("nav2_error_msg"), "nav2_recoveries": m.get("nav2_recoveries"),
+                   "plans": m.get("plans"),
                    "plan_length_m": m.get("plan_length_m"), "time": m.get("time"), "wall_s": round(wall, 2),
                    "failure_point": list(res.failure_point) if res.failure_point is not None else None,
                    "trajectory_every_10": traj, "mcap": str(mcap), "wall_start_ns": w0, "wall_end_ns": time.time_ns(),
@@ -214,7 +215,8 @@ def run_batch(args) -> int:
             with open(RUNS, "a") as fh:  # appended, never rewritten
                 fh.write(json.dumps(row) + "\n")
             print(f"map {i}: {res.failure_kind} ({res.detail}); Nav2 {m.get('nav2_status')} "
-                  f"{m.get('nav2_error_code')} {m.get('nav2_error_msg') or ''}; early {m.get('early_verdict')} "
+                  f"{m.get('nav2_error_code')} {m.get('nav2_error_msg') or ''}, recoveries {m.get('nav2_recoveries')}; "
+                  f"early {m.get('early_verdict')} "
                   f"({m.get('early_detail')}); {wall:.0f} s wall", flush=True)
     finally:
         node.shutdown()

@@ -13,7 +13,8 @@ time (the largest time scales that keep real time's verdicts on this 2-core mach
 stops sending maps after ``--nav2-hours`` of simulated time (its ``execution_budget`` in wall
 seconds, at the time scale); the map in flight then finishes. From its bag: Nav2 runs, their simulated time, failures, known failures (not counted), the
 distinct new certified failures (the campaign gallery's count: every failure has a clearance route,
-known limits excluded), and the early verdicts, counted separately. One JSON row per run is appended
+known limits excluded), the early verdicts, counted separately, and the near misses (passes that
+needed Nav2's recoveries, from its action feedback). One JSON row per run is appended
 to ``bench/results/nav2_search.jsonl``, never rewritten. ``--report`` prints, per controller, each
 algorithm's runs and, from 10 runs a side, a one-sided Mann-Whitney U test of its distinct failures
 against random's.
@@ -79,6 +80,9 @@ def run_one(args, install: Path, logs: Path) -> dict:
         "distinct_new_failures": gallery["distinct_failures"],
         "kinds": dict(Counter(o.failure_kind for o in driven if o.failed)),
         "early_verdicts": dict(early),
+        # passes that needed Nav2's recovery branch (nav2_recoveries, from the action's feedback)
+        "near_misses": sum(not o.failed and int(o.metrics.get("nav2_recoveries") or 0) > 0 for o in driven),
+        "recoveries": sum(int(o.metrics.get("nav2_recoveries") or 0) for o in driven),
         # the campaign drew them when it ended; drawing again draws nothing over them
         "pictures": sorted(str(p) for p in (out_dir / "failures").glob("failure_*.png")),
         "unresolved": summarize(mcap)["unresolved"], "mcap": str(mcap),
@@ -99,7 +103,8 @@ def report() -> int:
         for (algorithm, mode), runs in sorted(by.items()):
             d = [r["distinct_new_failures"] for r in runs]
             print(f"{algorithm} ({mode}): {len(runs)} runs, Nav2 hours {[r['nav2_hours'] for r in runs]}, "
-                  f"distinct new failures {d}, known {[r['known_failures'] for r in runs]}")
+                  f"distinct new failures {d}, known {[r['known_failures'] for r in runs]}, near misses "
+                  f"{[r.get('near_misses', '-') for r in runs]} (- : a run from before they were recorded)")
         base = [r["distinct_new_failures"] for (a, _), runs in by.items() if a == "random" for r in runs]
         for (algorithm, mode), runs in sorted(by.items()):
             d = [r["distinct_new_failures"] for r in runs]
@@ -141,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
         fh.write(json.dumps(row) + "\n")
     print(json.dumps({key: row[key] for key in ("controller", "algorithm", "mode", "seed", "exit", "wall_s", "nav2_runs",
                                                 "nav2_hours", "failures", "known_failures", "distinct_new_failures",
-                                                "kinds", "early_verdicts")}), flush=True)
+                                                "kinds", "early_verdicts", "near_misses")}), flush=True)
     return 0
 
 

@@ -9,7 +9,9 @@ asynchronous and the adapter polls from its timers, so a slow Nav2 never stalls 
 * ``clear_costmaps()``: both costmaps cleared entirely (``clear_entirely_*_costmap``), so marks of
   the last scenario's walls never show up in the next map;
 * ``send(pose)``: the goal; its result (status succeeded | aborted | canceled, with Nav2's error
-  code and message when the action has them) lands in ``result``;
+  code and message when the action has them) lands in ``result``, and the most recoveries its
+  feedback reported (``number_of_recoveries``: every recovery action the behaviour tree ran, costmap
+  clearings included) in ``recoveries``: a goal that succeeded after one is a near miss;
 * ``cancel()``: the running goal, once our oracle has decided before Nav2 did.
 """
 from __future__ import annotations
@@ -37,6 +39,7 @@ class Nav2Client:  # pragma: no cover - needs rclpy and nav2_msgs (test/real_ros
         self._clear_clients: dict[str, Any] = {}
         self.handle: Any = None
         self.result: dict[str, Any] | None = None
+        self.recoveries = 0  # the current goal's, from its feedback
         self.goals = 0
 
     # --- readiness ------------------------------------------------------------------------------
@@ -85,9 +88,13 @@ class Nav2Client:  # pragma: no cover - needs rclpy and nav2_msgs (test/real_ros
         """Send a ``geometry_msgs/PoseStamped`` goal (an rclpy message); the outcome goes to ``result``."""
         request = self.action_type.Goal()
         request.pose = pose
-        self.handle, self.result = None, None
+        self.handle, self.result, self.recoveries = None, None, 0
         self.goals += 1
         goal_number = self.goals
+
+        def on_feedback(message):
+            if goal_number == self.goals:
+                self.recoveries = max(self.recoveries, int(message.feedback.number_of_recoveries))
 
         def on_response(future):
             handle = future.result()
@@ -112,7 +119,7 @@ class Nav2Client:  # pragma: no cover - needs rclpy and nav2_msgs (test/real_ros
             if not late:
                 self.result = outcome
 
-        self.action.send_goal_async(request).add_done_callback(on_response)
+        self.action.send_goal_async(request, feedback_callback=on_feedback).add_done_callback(on_response)
 
     def cancel(self) -> None:
         if self.handle is not None and self.result is None:

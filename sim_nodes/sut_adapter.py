@@ -37,7 +37,9 @@ To the generator it is one more sim worker (heartbeats on ``/ambiegen/workers``,
   ``metrics["early_verdict"]``, ``early_detail`` and ``early_time``. With
   ``early_verdicts:=true`` they decide, as for a robot without recoveries, and a goal still
   running at their verdict is cancelled. Nav2's result is recorded beside the verdict either way
-  (``nav2_status``, ``nav2_error_code``, ``nav2_error_msg``). A failure that matches an entry of
+  (``nav2_status``, ``nav2_error_code``, ``nav2_error_msg``), with the recoveries Nav2 ran for it
+  (``nav2_recoveries``, its feedback's count: costmap clearings, spins, waits, back-ups): a PASS
+  that needed any is a near miss, and its detail says so. A failure that matches an entry of
   ``known_failures`` (a YAML file, ``ambiegen_ros.sims.known_failures``; the Nav2 launch passes
   ``config/nav2/known_failures.yaml``, NavFn's path cap) is recorded as FAIL(kind, known: name),
   ``metrics["known_failure"]``, and not counted among new distinct failures.
@@ -102,6 +104,11 @@ ODOM_FRAMES = ("map", "start")
 GOAL_MODES = ("topic", "action")
 START_HEADINGS = ("route", "scenario")
 NAV2_NOT_READY_S = 1.0  # simulated s judged: Nav2 refusing its goal sooner gets it once more
+
+
+def near_miss(recoveries: int) -> str:
+    """What a PASS detail adds when Nav2 got there only through its recovery branch."""
+    return f" (a near miss: after {recoveries} recover{'y' if recoveries == 1 else 'ies'})" if recoveries else ""
 
 
 def nav2_answer(result: dict, elapsed: float) -> str:
@@ -512,7 +519,8 @@ class SutAdapter:
                 self.nav2_stamp = self.order.newest if self.order.newest is not None else -1
             if self.order.watermark >= self.nav2_stamp and not self.samples:
                 if r["status"] == "succeeded":
-                    job.judge.stack_result(True, "none", f"Nav2 reached the goal after {job.judge.elapsed:.1f} s")
+                    job.judge.stack_result(True, "none", f"Nav2 reached the goal after {job.judge.elapsed:.1f} s"
+                                                           + near_miss(self.nav2.recoveries))
                 else:
                     job.judge.stack_result(False, "nav2_aborted", f"Nav2 {nav2_answer(r, job.judge.elapsed)}")
                 self.finish(job.judge.outcome())
@@ -613,7 +621,8 @@ class SutAdapter:
             r = self.nav2.result or {"status": "running (cancelled: the oracle decided first)" if self.nav2.handle
                                      else "no goal", "error_code": 0, "error_msg": ""}
             outcome.metrics = {**outcome.metrics, "nav2_status": r["status"], "nav2_error_code": r["error_code"],
-                               "nav2_error_msg": r["error_msg"], "nav2_first_abort": job.nav2_first_abort}
+                               "nav2_error_msg": r["error_msg"], "nav2_first_abort": job.nav2_first_abort,
+                               "nav2_recoveries": self.nav2.recoveries}
             self.nav2.cancel()
         if self.topics.get("plan"):
             length = None if self.last_plan is None else polyline_length(conversions.path_points(self.last_plan))

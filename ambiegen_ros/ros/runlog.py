@@ -36,12 +36,15 @@ def read_metadata(path: str | Path) -> dict[str, dict[str, str]]:
 
 
 def summarize(path: str | Path, run_id: str | None = None) -> dict[str, Any]:
-    """Counts per run from the log: scenarios, results, failures, timeouts, errors, unresolved ids."""
+    """Counts per run from the log: scenarios, results, failures, timeouts, errors, unresolved ids;
+    for a run against Nav2 (results with ``nav2_recoveries``), its near misses: passes that needed
+    Nav2's recovery branch."""
     scenario_topics = {topics.scenarios(p) for p in topics.SCENARIO_TYPES}
     scenarios: dict[int, int] = {}
     results: dict[int, Any] = {}
     duplicates = 0
     kinds: dict[str, int] = {}
+    nav2_results, near_misses = 0, 0
     last_status = None
     for topic, _, _, msg in iter_messages(path, scenario_topics | {topics.RESULTS, topics.STATUS}):
         if topic in scenario_topics:
@@ -60,6 +63,10 @@ def summarize(path: str | Path, run_id: str | None = None) -> dict[str, Any]:
             results[sid] = msg
             kind = FAILURE_NAMES.get(int(msg.failure_kind), str(msg.failure_kind))
             kinds[kind] = kinds.get(kind, 0) + 1
+            recoveries = next((kv.value for kv in msg.metrics if kv.key == "nav2_recoveries"), None)
+            if recoveries is not None:
+                nav2_results += 1
+                near_misses += not msg.failed and kind == "none" and int(recoveries or 0) > 0
         elif topic == topics.STATUS and (run_id is None or msg.run_id == run_id):
             last_status = msg
     unresolved = sorted(set(scenarios) - set(results))
@@ -78,6 +85,8 @@ def summarize(path: str | Path, run_id: str | None = None) -> dict[str, Any]:
         "duplicate_results": duplicates,
         "unresolved": unresolved,
     }
+    if nav2_results:
+        summary["near_misses"] = near_misses
     if last_status is not None:
         summary.update(
             evaluations=int(last_status.evaluations),

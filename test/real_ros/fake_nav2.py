@@ -1,11 +1,13 @@
 """A stand-in for Nav2's bt_navigator: a typed ``navigate_to_pose`` action server (rclpy, nav2_msgs).
 
-Run under the ROS python: ``python3 fake_nav2.py GOAL_TOPIC [abort|refuse-first]``. Each accepted goal is
+Run under the ROS python: ``python3 fake_nav2.py GOAL_TOPIC [abort|recover|refuse-first]``. Each accepted goal is
 printed (``goal x y frame``), forwarded as ``geometry_msgs/PoseStamped`` on GOAL_TOPIC (where
 ``external_sim`` drives the robot, as Nav2's planner + controller would), and succeeds after one
 feedback message, so the adapter sees a real action round trip (with ``early_verdicts`` the
 verdict still comes from odometry). With ``abort`` it aborts every goal instead, with Nav2's
-error code 102 and a message, as Nav2 does when its controller gives up. With ``refuse-first``
+error code 102 and a message, as Nav2 does when its controller gives up, its feedback counting
+the 2 recovery rounds it ran first. With ``recover`` every goal succeeds, its feedback counting 1
+recovery round (a near miss). With ``refuse-first``
 it aborts the first goal at once, unforwarded, with 103 "Resulting plan has 0 poses in it." (as
 MPPI's controller did once after a world reset), and serves every later goal normally.
 """
@@ -39,6 +41,7 @@ def main() -> int:
         forward.publish(pose)
         feedback = NavigateToPose.Feedback()
         feedback.current_pose = pose
+        feedback.number_of_recoveries = {"abort": 2, "recover": 1}.get(sys.argv[2] if len(sys.argv) > 2 else "", 0)
         goal_handle.publish_feedback(feedback)
         time.sleep(0.2)
         result = NavigateToPose.Result()

@@ -451,9 +451,19 @@ def test_sut_adapter_takes_nav2s_own_abort_as_the_verdict(jazzy, workspace, grap
     # metrics travel as text (diagnostic_msgs/KeyValue)
     assert res.metrics["nav2_status"] == "aborted" and int(res.metrics["nav2_error_code"]) == 102
     assert res.metrics["decided_by"] == "stack" and res.metrics["early_verdicts"] == "False"
+    assert int(res.metrics["nav2_recoveries"]) == 2  # from the action's feedback
     assert res.metrics["early_verdict"] in ("undecided", "none", "stall", "loiter")
     # refused before any odometry was judged: sent once more, refused again, and that is the verdict
     assert "error 102" in res.metrics["nav2_first_abort"] and g.log("fake_nav2").count("goal ") == 2, g.log("fake_nav2")
+
+
+def test_a_pass_after_nav2s_recoveries_is_a_near_miss(jazzy, workspace, graph, monkeypatch, ros_domain):
+    """Nav2 succeeding after a round of its recovery branch (its feedback's ``number_of_recoveries``)
+    is a PASS, recorded as a near miss: the count in the metrics, the words in the detail."""
+    g = fake_nav2_graph(jazzy, workspace, graph, monkeypatch, ros_domain, "recover")
+    res = drive_easy_map(g, "recover")
+    assert res.failure_kind == "none" and not res.failed, res.detail
+    assert int(res.metrics["nav2_recoveries"]) == 1 and "a near miss: after 1 recovery" in res.detail, res.detail
 
 
 def test_a_goal_nav2_refuses_at_once_goes_once_more(jazzy, workspace, graph, monkeypatch, ros_domain):

@@ -1,0 +1,182 @@
+"""Near misses on Nav2, from campaign bags (issue 29): where a stack got through only by its recoveries.
+
+    python bench/nav2_near_misses.py --label mppi-restarts ~/nav2-bags/mppi-robot-nsga2-s1-*.mcap
+    python bench/nav2_near_misses.py --label mppi-random ~/nav2-bags/mppi-robot-random-s1-*.mcap \\
+        --plot docs/results/nav2/mppi_goal_approach.png --plot-from mppi-restarts,mppi-random
+
+Nav2 fails a map only after its behaviour tree's recovery rounds have run out; a map it passes after
+any recovery is a **near miss**, and where those cluster is where a search might push a stack over.
+Bags since the sut_adapter records ``nav2_recoveries`` (the action feedback's count, which in
+Jazzy counts costmap clearings as well as spins, waits and back-ups) say it directly. Older bags do
+not, so for every bag the progress checker is also replayed on ``/odom``: Nav2's
+``SimpleProgressChecker`` with its defaults in both stacks' params (the robot must move 0.5 m
+within 10 s), counted from the goal, restarted each time it fires. A PASS on which it fires is a
+**stall**; each firing fails FollowPath, and Nav2's tree answers with a recovery, so a stall is a
+near miss. For each map also the **arrival turn**: how far the
+robot must still turn at the goal, the angle between its direction of travel over the last 1.5 m
+into the goal and the goal's yaw.
+
+One JSON row per bag is appended to ``bench/results/nav2_near_misses.jsonl`` (never rewritten), with
+every driven map's figures; ``--plot`` draws the arrival turns of the rows with the ``--plot-from``
+labels, near misses marked, and the tracks of the near misses around the goal.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+OUT = REPO / "bench" / "results" / "nav2_near_misses.jsonl"
+PROGRESS_RADIUS, PROGRESS_TIME = 0.5, 10.0  # SimpleProgressChecker: required_movement_radius, movement_time_allowance
+ARRIVAL_FROM, ARRIVAL_TO = 1.5, 0.6  # m from the goal: the stretch whose direction of travel is the arrival
+
+
+def progress_failures(poses: np.ndarray, t_goal: float = 0.0) -> int:
+    """How often Nav2's progress checker would fire on these poses (rows t, x, y, ...), from the goal on."""
+    rows = poses[poses[:, 0] >= t_goal]
+    if not len(rows):
+        return 0
+    fired, anchor = 0, rows[0]
+    for row in rows[1:]:
+        if math.hypot(row[1] - anchor[1], row[2] - anchor[2]) > PROGRESS_RADIUS:
+            anchor = row
+        elif row[0] - anchor[0] > PROGRESS_TIME:
+            fired, anchor = fired + 1, row
+    return fired
+
+
+def arrival_turn(poses: np.ndarray, goal: tuple[float, float], goal_yaw: float) -> float | None:
+    """Degrees the robot must still turn at the goal: its direction of travel from ``ARRIVAL_FROM``
+    to ``ARRIVAL_TO`` metres off the goal (the first time it gets there) against the goal's yaw."""
+    d = np.hypot(poses[:, 1] - goal[0], poses[:, 2] - goal[1])
+    if not (d < ARRIVAL_TO).any():
+        return None
+    last = int(np.argmax(d < ARRIVAL_TO))
+    before = np.nonzero(d[:last] >= ARRIVAL_FROM)[0]
+    first = int(before[-1]) if len(before) else 0
+    heading = math.atan2(poses[last, 2] - poses[first, 2], poses[last, 1] - poses[first, 1])
+    return abs(math.degrees((heading - goal_yaw + math.pi) % (2 * math.pi) - math.pi))
+
+
+def bag_rows(path: Path) -> list[dict]:
+    from ambiegen_ros.core.errors import BadInput
+    from ambiegen_ros.ros.conversions import yaw_of
+    from ambiegen_ros.ros.robot_bag import read_index, read_run
+
+    from ambiegen_ros.ros import topics
+    from ambiegen_ros.ros.runlog import iter_messages
+
+    runs = {m.run_id for _, _, _, m in iter_messages(path, {topics.RESULTS})}
+    if len(runs) > 1:  # a bench/nav2_maps.py batch: a run per map, and the bag reader reads the first
+        raise SystemExit(f"{path}: {len(runs)} runs in one bag; this reads a campaign's bag (one run): for a "
+                         "nav2_maps.py batch, its rows in docs/results/nav2/runs.jsonl have nav2_recoveries")
+    index = read_index(path)
+    rows = []
+    for sid, entry in index.entries.items():
+        outcome = entry.outcome
+        if outcome is None or outcome.failure_kind in ("invalid_scenario", "invalid_test"):
+            continue
+        try:
+            run = read_run(index, sid)
+        except BadInput:
+            continue
+        goal_msg = index.scenario_msgs[sid].goal.pose
+        recorded = outcome.metrics.get("nav2_recoveries")
+        fired = progress_failures(run.poses, run.t_goal)
+        turn = arrival_turn(run.poses, run.goal, yaw_of(goal_msg.orientation))
+        stalled = not outcome.failed and fired > 0
+        close = np.hypot(run.poses[:, 1] - run.goal[0], run.poses[:, 2] - run.goal[1]) < 2.0
+        rows.append({"scenario": sid, "verdict": outcome.verdict, "failed": outcome.failed,
+                     "time": outcome.metrics.get("time"), "nav2_recoveries": recorded,
+                     "progress_failures_replayed": fired, "stalled": stalled,
+                     "near_miss": None if recorded is None else (not outcome.failed and int(recorded) > 0),
+                     "arrival_turn_deg": None if turn is None else round(turn, 1),
+                     "goal": list(run.goal),
+                     "track_near_goal": run.poses[close][::10, 1:3].round(2).tolist() if stalled else None})
+    return rows
+
+
+def summary(maps: list[dict]) -> dict:
+    turned = [m for m in maps if (m["arrival_turn_deg"] or 0.0) > 100.0]
+    recorded = [m["near_miss"] for m in maps if m["near_miss"] is not None]
+    return {"maps": len(maps), "failures": sum(m["failed"] for m in maps), "stalls": sum(m["stalled"] for m in maps),
+            "near_misses": sum(recorded) if recorded else None,
+            "arrival_turn_over_100": len(turned), "stalls_there": sum(m["stalled"] for m in turned)}
+
+
+def plot(rows: list[dict], labels: list[str], out: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.5))
+    for k, label in enumerate(labels):
+        maps = [m for r in rows if r["label"] == label for m in r["maps"] if m["arrival_turn_deg"] is not None]
+        jitter = np.random.default_rng(k).uniform(-0.15, 0.15, len(maps))
+        for m, j in zip(maps, jitter):
+            style = dict(color="tab:red", marker="x", s=40) if m["stalled"] else dict(color="tab:blue", marker="o",
+                                                                                          s=12, alpha=0.5)
+            ax.scatter(m["arrival_turn_deg"], k + j, **style)
+    ax.axvline(100.0, color="grey", linestyle=":")
+    ax.set_yticks(range(len(labels)), labels)
+    ax.set_xlabel("turn still needed at the goal [deg] (direction of travel against the goal's yaw)")
+    ax.set_title("stalled, then passed (x); passed clean (o)")
+    for r in rows:
+        if r["label"] not in labels:
+            continue
+        for m in r["maps"]:
+            if m["stalled"] and m["track_near_goal"]:
+                track = np.array(m["track_near_goal"]) - np.array(m["goal"])
+                bx.plot(track[:, 0], track[:, 1], color="tab:red", alpha=0.6)
+                bx.scatter(track[-1, 0], track[-1, 1], color="tab:red", s=8)
+    bx.add_patch(plt.Circle((0, 0), 0.25, fill=False, color="green", label="xy goal tolerance 0.25 m"))
+    bx.annotate("", xy=(0.6, 0), xytext=(0, 0), arrowprops=dict(arrowstyle="->", color="green"))
+    bx.set_aspect("equal")
+    bx.set_xlim(-2, 2)
+    bx.set_ylim(-2, 2)
+    bx.set_xlabel("x - goal [m]")
+    bx.set_ylabel("y - goal [m]")
+    bx.set_title("stalls: tracks within 2 m of the goal (arrow: goal yaw)")
+    bx.legend(loc="lower left", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out, dpi=100)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("bags", nargs="*", type=Path, help="campaign bags (robot bags with /odom, one run each)")
+    ap.add_argument("--label", default="", help="a name for these bags' rows (for --plot-from)")
+    ap.add_argument("--plot", type=Path, help="draw the rows of the --plot-from labels here (PNG; not overwritten)")
+    ap.add_argument("--plot-from", default="", help="comma-separated labels of rows in the results file")
+    args = ap.parse_args(argv)
+    from ambiegen_ros.core.runs import versions
+
+    for bag in args.bags:
+        maps = bag_rows(bag)
+        row = {"label": args.label, "bag": bag.name, **summary(maps), "maps": maps,
+               "when": datetime.now(timezone.utc).isoformat(timespec="seconds"), "versions": versions()}
+        OUT.parent.mkdir(parents=True, exist_ok=True)
+        with open(OUT, "a") as fh:  # appended, never rewritten
+            fh.write(json.dumps(row) + "\n")
+        print(json.dumps({k: row[k] for k in ("label", "bag", "failures", "stalls", "near_misses",
+                                              "arrival_turn_over_100", "stalls_there")} | {"maps": len(maps)}))
+    if args.plot:
+        if args.plot.exists():
+            raise SystemExit(f"{args.plot} exists: not overwritten (remove it first)")
+        rows = [json.loads(line) for line in OUT.read_text().splitlines() if line.strip()]
+        plot(rows, [s for s in args.plot_from.split(",") if s], args.plot)
+        print(args.plot)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
