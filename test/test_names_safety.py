@@ -34,7 +34,8 @@ def own_domain(ros_domain, monkeypatch) -> None:
 SAFE = ["run-1a2b3c4d", "thermostat-nsga2-s1-abc123", "replay-run-1-ff00aa", "w_a", "thermostat_sim_1234",
         "robot.sim+2@host=1", "A" * limits.MAX_NAME_LENGTH]
 UNSAFE = ["", ".", "..", "../x", "a/../../b", "/etc/passwd", "a/b", "a\\b", "run\x00id", "run\nid", "run\rid",
-          "run\x1b[31mred", "tab\tid", "space id", ".hidden", "x..y", "é", "run\u202eid", "A" * (limits.MAX_NAME_LENGTH + 1)]
+          "run\x1b[31mred", "tab\tid", "space id", ".hidden", "x..y", "é", "run\u202eid", "A" * (limits.MAX_NAME_LENGTH + 1),
+          "-", "-rf", "-" * (limits.MAX_NAME_LENGTH + 1)]  # "-": found by test/ros/test_fuzz_handlers.py
 
 
 @pytest.mark.parametrize("name", SAFE)

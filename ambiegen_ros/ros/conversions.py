@@ -307,7 +307,9 @@ def safe_echo(name: str) -> str:
     try:
         return check_name(name, "name", allow_empty=True)
     except UnsafeName:
-        return "".join(c if c.isascii() and (c.isalnum() or c in "_-") else "_" for c in str(name)[:MAX_NAME_LENGTH])
+        out = "".join(c if c.isascii() and (c.isalnum() or c in "_-") else "_" for c in str(name)[:MAX_NAME_LENGTH])
+        # a name may not start with "-" (it would read as an option): "-" alone is echoed as "_-"
+        return ("_" + out)[:MAX_NAME_LENGTH] if out.startswith("-") else out
 
 
 def scenario_from_message(problem: Problem, msg: Any) -> tuple[Scenario, dict[str, Any]]:
