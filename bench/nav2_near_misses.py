@@ -69,6 +69,7 @@ def bag_rows(path: Path) -> list[dict]:
     from ambiegen_ros.core.errors import BadInput
     from ambiegen_ros.ros.conversions import yaw_of
     from ambiegen_ros.ros.robot_bag import read_index, read_run
+    from ambiegen_ros.sims.outcome import NAV2_RECOVERIES, near_miss
 
     from ambiegen_ros.ros import topics
     from ambiegen_ros.ros.runlog import iter_messages
@@ -88,7 +89,7 @@ def bag_rows(path: Path) -> list[dict]:
         except BadInput:
             continue
         goal_msg = index.scenario_msgs[sid].goal.pose
-        recorded = outcome.metrics.get("nav2_recoveries")
+        recorded = outcome.metrics.get(NAV2_RECOVERIES)
         fired = progress_failures(run.poses, run.t_goal)
         turn = arrival_turn(run.poses, run.goal, yaw_of(goal_msg.orientation))
         stalled = not outcome.failed and fired > 0
@@ -96,7 +97,7 @@ def bag_rows(path: Path) -> list[dict]:
         rows.append({"scenario": sid, "verdict": outcome.verdict, "failed": outcome.failed,
                      "time": outcome.metrics.get("time"), "nav2_recoveries": recorded,
                      "progress_failures_replayed": fired, "stalled": stalled,
-                     "near_miss": None if recorded is None else (not outcome.failed and int(recorded) > 0),
+                     "near_miss": None if recorded is None else near_miss(outcome.failure_kind, recorded),
                      "arrival_turn_deg": None if turn is None else round(turn, 1),
                      "goal": list(run.goal),
                      "track_near_goal": run.poses[close][::10, 1:3].round(2).tolist() if stalled else None})

@@ -50,6 +50,7 @@ def run_one(args, install: Path, logs: Path) -> dict:
     from ambiegen_ros.core.runs import versions
     from ambiegen_ros.nodes.gallery import draw_failures
     from ambiegen_ros.nodes.replay import recorded_scenarios
+    from ambiegen_ros.sims.outcome import NAV2_RECOVERIES, near_miss
     from ambiegen_ros.ros.runlog import summarize
 
     extra, k = CONTROLLERS[args.controller]
@@ -81,8 +82,8 @@ def run_one(args, install: Path, logs: Path) -> dict:
         "kinds": dict(Counter(o.failure_kind for o in driven if o.failed)),
         "early_verdicts": dict(early),
         # passes that needed Nav2's recovery branch (nav2_recoveries, from the action's feedback)
-        "near_misses": sum(not o.failed and int(o.metrics.get("nav2_recoveries") or 0) > 0 for o in driven),
-        "recoveries": sum(int(o.metrics.get("nav2_recoveries") or 0) for o in driven),
+        "near_misses": sum(near_miss(o.failure_kind, o.metrics.get(NAV2_RECOVERIES)) for o in driven),
+        "recoveries": sum(int(o.metrics.get(NAV2_RECOVERIES) or 0) for o in driven),
         # the campaign drew them when it ended; drawing again draws nothing over them
         "pictures": sorted(str(p) for p in (out_dir / "failures").glob("failure_*.png")),
         "unresolved": summarize(mcap)["unresolved"], "mcap": str(mcap),

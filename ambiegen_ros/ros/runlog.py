@@ -10,7 +10,7 @@ from typing import Any, Iterator
 
 from mcap.reader import make_reader
 
-from ..sims.outcome import FAILURE_NAMES
+from ..sims.outcome import FAILURE_NAMES, NAV2_RECOVERIES, near_miss
 from . import topics
 from .types import get_registry
 
@@ -63,10 +63,10 @@ def summarize(path: str | Path, run_id: str | None = None) -> dict[str, Any]:
             results[sid] = msg
             kind = FAILURE_NAMES.get(int(msg.failure_kind), str(msg.failure_kind))
             kinds[kind] = kinds.get(kind, 0) + 1
-            recoveries = next((kv.value for kv in msg.metrics if kv.key == "nav2_recoveries"), None)
+            recoveries = next((kv.value for kv in msg.metrics if kv.key == NAV2_RECOVERIES), None)
             if recoveries is not None:
                 nav2_results += 1
-                near_misses += not msg.failed and kind == "none" and int(recoveries or 0) > 0
+                near_misses += near_miss(kind, recoveries)
         elif topic == topics.STATUS and (run_id is None or msg.run_id == run_id):
             last_status = msg
     unresolved = sorted(set(scenarios) - set(results))

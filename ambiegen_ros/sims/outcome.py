@@ -25,6 +25,12 @@ FAILURE_KINDS = {
 # about it: ``none`` passed, ``invalid_test`` is a scenario no reference passes (never a failure).
 SUT_FAILURES = ("collision", "stall", "timeout", "out_of_lane", "requirement", "loiter", "nav2_aborted")
 FAILURE_NAMES = {code: name for name, code in FAILURE_KINDS.items()}
+NAV2_RECOVERIES = "nav2_recoveries"  # metric: recovery actions Nav2 ran for the goal (its action feedback's count)
+
+
+def near_miss(kind: str, recoveries: Any) -> bool:
+    """A PASS that needed the stack's recoveries (``recoveries`` as recorded, text or number; None = not recorded)."""
+    return kind == "none" and int(recoveries or 0) > 0
 
 
 @dataclass
