@@ -16,7 +16,8 @@ near miss. For each map also the **arrival turn**: how far the
 robot must still turn at the goal, the angle between its direction of travel over the last 1.5 m
 into the goal and the goal's yaw.
 
-One JSON row per bag is appended to ``bench/results/nav2_near_misses.jsonl`` (never rewritten), with
+A bag may be a campaign's (one run) or a ``bench/nav2_maps.py`` batch's (a run per map, each map's
+row then names its run). One JSON row per bag is appended to ``bench/results/nav2_near_misses.jsonl`` (never rewritten), with
 every driven map's figures; ``--plot`` draws the arrival turns of the rows with the ``--plot-from``
 labels, near misses marked, and the tracks of the near misses around the goal.
 """
@@ -69,39 +70,42 @@ def bag_rows(path: Path) -> list[dict]:
     from ambiegen_ros.core.errors import BadInput
     from ambiegen_ros.ros.conversions import yaw_of
     from ambiegen_ros.ros.robot_bag import read_index, read_run
-    from ambiegen_ros.sims.outcome import NAV2_RECOVERIES, near_miss
 
-    from ambiegen_ros.ros import topics
-    from ambiegen_ros.ros.runlog import iter_messages
-
-    runs = {m.run_id for _, _, _, m in iter_messages(path, {topics.RESULTS})}
-    if len(runs) > 1:  # a bench/nav2_maps.py batch: a run per map, and the bag reader reads the first
-        raise SystemExit(f"{path}: {len(runs)} runs in one bag; this reads a campaign's bag (one run): for a "
-                         "nav2_maps.py batch, its rows in docs/results/nav2/runs.jsonl have nav2_recoveries")
     index = read_index(path)
     rows = []
-    for sid, entry in index.entries.items():
-        outcome = entry.outcome
-        if outcome is None or outcome.failure_kind in ("invalid_scenario", "invalid_test"):
-            continue
-        try:
-            run = read_run(index, sid)
-        except BadInput:
-            continue
-        goal_msg = index.scenario_msgs[sid].goal.pose
-        recorded = outcome.metrics.get(NAV2_RECOVERIES)
-        fired = progress_failures(run.poses, run.t_goal)
-        turn = arrival_turn(run.poses, run.goal, yaw_of(goal_msg.orientation))
-        stalled = not outcome.failed and fired > 0
-        close = np.hypot(run.poses[:, 1] - run.goal[0], run.poses[:, 2] - run.goal[1]) < 2.0
-        rows.append({"scenario": sid, "verdict": outcome.verdict, "failed": outcome.failed,
-                     "time": outcome.metrics.get("time"), "nav2_recoveries": recorded,
-                     "progress_failures_replayed": fired, "stalled": stalled,
-                     "near_miss": None if recorded is None else near_miss(outcome.failure_kind, recorded),
-                     "arrival_turn_deg": None if turn is None else round(turn, 1),
-                     "goal": list(run.goal),
-                     "track_near_goal": run.poses[close][::10, 1:3].round(2).tolist() if stalled else None})
+    for logged in index.runs:  # a campaign's bag holds one run; a nav2_maps.py batch's, a run per map
+        shown = index.select(logged)
+        for sid, entry in shown.entries.items():
+            outcome = entry.outcome
+            if outcome is None or outcome.failure_kind in ("invalid_scenario", "invalid_test"):
+                continue
+            try:
+                run = read_run(shown, sid)
+            except BadInput:
+                continue
+            rows.append(map_row(shown, run, yaw_of(shown.scenario_msgs[sid].goal.pose.orientation),
+                                several=len(index.runs) > 1))
     return rows
+
+
+def map_row(index, run, goal_yaw: float, several: bool) -> dict:
+    """One driven map's figures (``run``: its streams, ``robot_bag.RobotRun``); its run's id when the bag has several."""
+    from ambiegen_ros.sims.outcome import NAV2_RECOVERIES, near_miss
+
+    outcome = run.entry.outcome
+    recorded = outcome.metrics.get(NAV2_RECOVERIES)
+    fired = progress_failures(run.poses, run.t_goal)
+    turn = arrival_turn(run.poses, run.goal, goal_yaw)
+    stalled = not outcome.failed and fired > 0
+    close = np.hypot(run.poses[:, 1] - run.goal[0], run.poses[:, 2] - run.goal[1]) < 2.0
+    return {**({"run": index.run_id} if several else {}), "scenario": run.entry.scenario_id,
+            "verdict": outcome.verdict, "failed": outcome.failed,
+            "time": outcome.metrics.get("time"), "nav2_recoveries": recorded,
+            "progress_failures_replayed": fired, "stalled": stalled,
+            "near_miss": None if recorded is None else near_miss(outcome.failure_kind, recorded),
+            "arrival_turn_deg": None if turn is None else round(turn, 1),
+            "goal": list(run.goal),
+            "track_near_goal": run.poses[close][::10, 1:3].round(2).tolist() if stalled else None}
 
 
 def summary(maps: list[dict]) -> dict:
@@ -154,7 +158,7 @@ def plot(rows: list[dict], labels: list[str], out: Path) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("bags", nargs="*", type=Path, help="campaign bags (robot bags with /odom, one run each)")
+    ap.add_argument("bags", nargs="*", type=Path, help="robot bags with /odom: a campaign's, or a nav2_maps.py batch's")
     ap.add_argument("--label", default="", help="a name for these bags' rows (for --plot-from)")
     ap.add_argument("--plot", type=Path, help="draw the rows of the --plot-from labels here (PNG; not overwritten)")
     ap.add_argument("--plot-from", default="", help="comma-separated labels of rows in the results file")

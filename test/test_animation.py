@@ -193,3 +193,78 @@ def test_the_foxglove_layout_shows_a_robot_bags_topics():
     paths += [p["value"] for cfg in panels.values() for p in cfg.get("paths", [])]
     assert any(path.startswith("/ambiegen/results") for path in paths)
     assert "scenario_id" in layout["globalVariables"]
+
+
+def as_batch(bag: Path, out: Path) -> Path:
+    """The real bag rewritten as a ``bench/nav2_maps.py`` batch logs one: every scenario its own run
+    (``batch-<id>``) as scenario 0; every other message copied byte for byte."""
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+
+    from ambiegen_ros.ros import topics
+    from ambiegen_ros.ros.types import get_registry
+
+    registry = get_registry()
+    renamed = {topics.scenarios("robot"), topics.RESULTS}
+    with open(bag, "rb") as src, open(out, "wb") as dst:
+        writer = Writer(dst)
+        writer.start()
+        schemas: dict[int, int] = {}
+        channels: dict[int, int] = {}
+        for schema, channel, message in make_reader(src).iter_messages(log_time_order=True):
+            if schema.id not in schemas:
+                schemas[schema.id] = writer.register_schema(schema.name, schema.encoding, schema.data)
+            if channel.id not in channels:
+                channels[channel.id] = writer.register_channel(channel.topic, channel.message_encoding,
+                                                               schemas[schema.id], dict(channel.metadata))
+            data = message.data
+            if channel.topic in renamed:
+                msg = registry.deserialize(data, schema.name)
+                meta = msg.meta if channel.topic != topics.RESULTS else msg
+                meta.run_id, meta.scenario_id = f"batch-{int(meta.scenario_id)}", 0
+                data = registry.serialize(msg, schema.name)
+            writer.add_message(channels[channel.id], message.log_time, data, message.publish_time)
+        writer.finish()
+    return out
+
+
+def test_a_bag_of_several_runs_is_read_run_by_run(bag, tmp_path):
+    """A batch bag (a run per map, each map its scenario 0): every run indexed with its own stretch
+    of the log, listed with its run id, picked with --run; an id that several runs hold is refused."""
+    from ambiegen_ros.ros.robot_bag import read_index, read_run
+
+    batch = as_batch(bag, tmp_path / "batch.mcap")
+    index = read_index(batch)
+    assert list(index.runs) == ["batch-0", "batch-1"] and index.run_id == "batch-0"
+    whole = read_index(bag)
+    for k in (0, 1):
+        shown = index.select(f"batch-{k}")
+        assert list(shown.entries) == [0]
+        entry, original = shown.entries[0], whole.entries[k]
+        assert (entry.start_ns, entry.end_ns, entry.outcome.failure_kind) == \
+            (original.start_ns, original.end_ns, original.outcome.failure_kind)
+        assert np.array_equal(read_run(shown, 0).poses, read_run(whole, k).poses)
+    assert read_index(batch, "batch-1").entries[0].end_ns == whole.entries[1].end_ns
+
+    listed = ambiegen("show", str(batch))
+    lines = listed.stdout.splitlines()
+    assert listed.returncode == 2 and [line.split()[:2] for line in lines] == [["batch-0", "0"], ["batch-1", "0"]]
+    assert listed.stderr.count("\n") == 1 and "2 runs" in listed.stderr and "--run RUN" in listed.stderr
+    for args, words in ((["--scenario", "0"], "is in 2 runs"), (["--run", "nope", "--scenario", "0"], "no run 'nope'")):
+        refused = ambiegen("show", str(batch), *args, "-o", str(tmp_path / "x.gif"))
+        assert refused.returncode == 2 and refused.stderr.count("\n") == 1 and words in refused.stderr, refused.stderr
+    assert not (tmp_path / "x.gif").exists()
+    drawn = ambiegen("show", str(batch), "--run", "batch-1", "--scenario", "0", "--fps", "2", "--speed", "4")
+    out = tmp_path / "batch_batch-1_scenario_0.gif"  # the default name says which run
+    assert drawn.returncode == 0 and str(out) in drawn.stdout and "FAIL(stall)" in drawn.stdout, drawn.stderr
+    assert red_pixels(frames(out)[-1]) > 50
+
+
+def test_near_miss_bench_reads_every_run_of_a_batch_bag(bag, tmp_path, monkeypatch):
+    """``bench/nav2_near_misses.py`` on a batch bag: a row per map, each naming its run."""
+    monkeypatch.syspath_prepend(str(REPO / "bench"))
+    from nav2_near_misses import bag_rows
+
+    rows = bag_rows(as_batch(bag, tmp_path / "batch.mcap"))
+    assert [(r["run"], r["scenario"], r["failed"]) for r in rows] == [("batch-0", 0, True), ("batch-1", 0, True)]
+    assert "run" not in bag_rows(bag)[0]  # one run: rows as before

@@ -94,8 +94,9 @@ def cmd_show(args: argparse.Namespace) -> int:
     target = Path(args.target)
     if target.suffix.lower() == ".mcap":
         return show_bag(args, target)
-    if args.scenario is not None or args.fps is not None or args.speed is not None or args.overwrite:
-        raise BadInput("--scenario, --fps, --speed and --overwrite are for a robot bag (RUN.mcap)")
+    if args.scenario is not None or args.run is not None or args.fps is not None or args.speed is not None \
+            or args.overwrite:
+        raise BadInput("--run, --scenario, --fps, --speed and --overwrite are for a robot bag (RUN.mcap)")
     from ..viz import save_scenario_plot
     from ..viz.runs import plot_run
 
@@ -130,20 +131,32 @@ def show_bag(args: argparse.Namespace, path: Path) -> int:
     if args.execute or args.config or args.profile:
         raise BadInput("--execute, --config and --profile are for a scenario file; a bag is drawn as recorded")
     output = Path(args.output) if args.output else None
-    if args.scenario is not None:  # a wrong -o fails before the bag is read
-        from ..viz.animation import check_output
-
-        output = output or path.with_name(f"{path.stem}_scenario_{args.scenario}.gif")
-        try:
-            check_output(output, args.overwrite)
-        except ValueError as exc:
-            raise BadInput(str(exc)) from None
-    index = read_index(path)
+    if args.scenario is not None and output is not None:  # a wrong -o fails before the bag is read
+        _check_output(output, args.overwrite)
+    index = read_index(path, args.run)
+    several = len(index.runs) > 1 and args.run is None
     if args.scenario is None:
-        for entry in index.entries.values():
-            print(f"{entry.scenario_id:6d}  {entry.verdict[:70]:<24s}  {_log_span(index, entry)}")
+        for run in (index.runs if several else [index.run_id]):
+            shown = index.select(run)
+            for entry in shown.entries.values():
+                named = f"{shown.run_id}  " if several else ""
+                print(f"{named}{entry.scenario_id:6d}  {entry.verdict[:70]:<24s}  {_log_span(shown, entry)}")
+        if several:
+            raise BadInput(f"{path}: {sum(len(e) for e, _ in index.runs.values())} robot scenarios in "
+                           f"{len(index.runs)} runs (above); pick one: ambiegen show {path} --run RUN --scenario ID "
+                           "-o failure.gif")
         raise BadInput(f"{path}: {len(index.entries)} robot scenarios of run {index.run_id} (above); pick one: "
                        f"ambiegen show {path} --scenario ID -o failure.gif")
+    if several:  # a scenario id names a run only when one run has it (a batch logs scenario 0 in every run)
+        having = [run for run, (entries, _) in index.runs.items() if args.scenario in entries]
+        if len(having) > 1:
+            raise BadInput(f"{path}: scenario {args.scenario} is in {len(having)} runs of the bag; pick one with "
+                           f"--run RUN (ambiegen show {path} lists them)")
+        index = index.select(having[0]) if having else index
+    if output is None:
+        named = f"_{index.run_id}" if len(index.runs) > 1 else ""
+        output = path.with_name(f"{path.stem}{named}_scenario_{args.scenario}.gif")
+        _check_output(output, args.overwrite)
     from ..viz.animation import save_robot_animation
 
     run = read_run(index, args.scenario)
@@ -158,6 +171,16 @@ def show_bag(args: argparse.Namespace, path: Path) -> int:
           f"{facts['duration_s']:.1f} simulated s{faster}")
     print(f"  {_log_span(index, run.entry)}")
     return 0
+
+
+def _check_output(output: Path, overwrite: bool) -> None:
+    """An animation's output file, refused in one line (exists, or not .gif/.mp4)."""
+    from ..viz.animation import check_output
+
+    try:
+        check_output(output, overwrite)
+    except ValueError as exc:
+        raise BadInput(str(exc)) from None
 
 
 def _log_span(index, entry) -> str:
@@ -193,6 +216,9 @@ def register(sub) -> None:
                    "(default RUN_scenario_ID.gif); an existing file is refused")
     p.add_argument("--execute", action="store_true", help="run the scenario on its full-model simulator and draw the trajectory")
     p.add_argument("--seed", type=int, default=0, help="simulator seed for --execute (default 0)")
+    p.add_argument("--run", metavar="RUN", help="a bag with several runs (a bench/nav2_maps.py batch logs a run "
+                   "per map): the run whose scenarios are listed or animated (default: the one run that has "
+                   "--scenario ID, else the first)")
     p.add_argument("--scenario", type=int, metavar="ID", help="a bag: the scenario id to animate (the map, the "
                    "robot's footprint, /scan, /plan, the trajectory so far, and the verdict with the failure point)")
     p.add_argument("--fps", type=float, help="a bag: frames per second of the animation; one frame per "

@@ -1,8 +1,9 @@
 """One robot scenario's streams out of a robot bag: what ``ambiegen show RUN.mcap --scenario ID`` animates.
 
 A robot bag is a run's MCAP that also holds the robot's own topics (``ambiegen campaign --stack
-nd`` records them): ``/odom``, ``/scan``, ``/plan``, ``/tf``. Only the log's first run counts
-(as ``nodes.replay.recorded_scenarios`` reads it). A scenario's stretch of the bag is found by log
+nd`` records them): ``/odom``, ``/scan``, ``/plan``, ``/tf``. A bag may hold several runs (a
+``bench/nav2_maps.py`` batch logs a run per map): every run is indexed, the first one is shown unless
+another is picked (``ambiegen show RUN.mcap --run ID``). A scenario's stretch of the bag is found by log
 time: it ends at its result on ``/ambiegen/results``, and starts at the last ``/initialpose``
 (else ``/goal_pose``, ``/map``) logged between its scenario message and that result, else at the
 scenario message (one system under test runs one scenario at a time, so that is its set-up).
@@ -19,7 +20,7 @@ from __future__ import annotations
 import bisect
 import math
 import struct
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -39,7 +40,7 @@ START_TOLERANCE = 0.5  # a pose this close to the scenario's start shows the new
 
 @dataclass
 class ScenarioEntry:
-    """A scenario of the bag's first run, as listed: id, verdict and its stretch of log time."""
+    """A scenario of one run of the bag, as listed: id, verdict and its stretch of log time."""
 
     scenario_id: int
     outcome: Outcome | None  # None: no result logged
@@ -55,7 +56,8 @@ class ScenarioEntry:
 
 @dataclass
 class BagIndex:
-    """The light pass over a bag: run id, its scenarios in id order, where the bag starts, which topics it has."""
+    """The light pass over a bag: the run shown, its scenarios in id order, where the bag starts, which
+    topics it has, and every run of the bag (``select`` shows another)."""
 
     path: Path
     run_id: str  # as it may be echoed (``conversions.safe_echo``)
@@ -63,6 +65,16 @@ class BagIndex:
     scenario_msgs: dict[int, Any]  # the first scenario message of each id
     bag_start_ns: int
     topic_counts: dict[str, int]
+    # every run in the order of its first scenario message: logged run id -> (entries, scenario messages)
+    runs: dict[str, tuple[dict[int, ScenarioEntry], dict[int, Any]]] = field(default_factory=dict)
+
+    def select(self, run_id: str) -> "BagIndex":
+        """The same index showing another run, named as logged or as echoed (``BadInput``: no such run)."""
+        for logged, (entries, msgs) in self.runs.items():
+            if run_id in (logged, safe_echo(logged)):
+                return replace(self, run_id=safe_echo(logged), entries=entries, scenario_msgs=msgs)
+        shown = ", ".join(safe_echo(r) for r in list(self.runs)[:10]) + (", ..." if len(self.runs) > 10 else "")
+        raise BadInput(f"{self.path}: no run {safe_echo(run_id)!r} in the bag (runs: {shown})")
 
 
 @dataclass
@@ -95,18 +107,18 @@ class RobotRun:
         return t if math.isfinite(t) else None
 
 
-def read_index(path: str | Path) -> BagIndex:
-    """Scenarios, results and set-up messages of the bag's first robot run (one light pass).
+def read_index(path: str | Path, run_id: str | None = None) -> BagIndex:
+    """Scenarios, results and set-up messages of every robot run of the bag (one light pass), showing
+    ``run_id`` (default: the first run logged).
 
-    Raises ``BadInput`` (one line) for a file that is not an MCAP or holds no robot scenario."""
+    Raises ``BadInput`` (one line) for a file that is not an MCAP, holds no robot scenario or not that run."""
     from mcap.exceptions import McapError
 
     path = Path(path)
     if not path.is_file():
         raise BadInput(f"{path}: no such file")
-    run_id = ""
-    scenario_ns: dict[int, int] = {}
-    scenario_msgs: dict[int, Any] = {}
+    scenario_ns: dict[str, dict[int, int]] = {}  # run id -> scenario id -> log time of its first message
+    scenario_msgs: dict[str, dict[int, Any]] = {}
     results: dict[tuple[str, int], tuple[int, Any]] = {}  # (run id, scenario id) -> (log time, message)
     setups: list[tuple[int, str]] = []
     other_problems: set[str] = set()
@@ -115,10 +127,10 @@ def read_index(path: str | Path) -> BagIndex:
         counts, first_ns, last_ns = bag_summary(path)
         for topic, _, log_ns, msg in _messages(path, wanted & set(counts)):
             if topic == ROBOT_SCENARIOS:
-                run_id = run_id or msg.meta.run_id
                 sid = int(msg.meta.scenario_id)
-                if msg.meta.run_id == run_id and sid not in scenario_msgs:
-                    scenario_ns[sid], scenario_msgs[sid] = log_ns, msg
+                if sid not in scenario_msgs.setdefault(msg.meta.run_id, {}):
+                    scenario_msgs[msg.meta.run_id][sid] = msg
+                    scenario_ns.setdefault(msg.meta.run_id, {})[sid] = log_ns
             elif topic == topics.RESULTS:
                 results.setdefault((msg.run_id, int(msg.scenario_id)), (log_ns, msg))
             elif topic in SETUP_TOPICS:
@@ -131,20 +143,25 @@ def read_index(path: str | Path) -> BagIndex:
     if not scenario_msgs:
         what = f"a {'/'.join(sorted(other_problems))} run" if other_problems else "no scenario messages"
         raise BadInput(f"{path}: not a robot bag ({what}; nothing on {ROBOT_SCENARIOS})")
-    entries = {}
-    for sid in sorted(scenario_msgs):
-        logged = results.get((run_id, sid))
-        end = logged[0] if logged else last_ns
-        start = scenario_ns[sid]
-        for name in SETUP_TOPICS:  # the last set-up of this scenario, most telling topic first
-            found = [t for t, topic in setups if topic == name and start <= t < end]
-            if found:
-                start = found[-1]
-                break
-        goals = [t for t, topic in setups if topic == "/goal_pose" and start <= t < end]
-        entries[sid] = ScenarioEntry(sid, outcome_from_message(logged[1]) if logged else None, start, end,
-                                     goals[-1] if goals else None)
-    return BagIndex(path, safe_echo(run_id), entries, scenario_msgs, first_ns, counts)
+    runs = {}
+    for run, msgs in scenario_msgs.items():
+        entries = {}
+        for sid in sorted(msgs):
+            logged = results.get((run, sid))
+            end = logged[0] if logged else last_ns
+            start = scenario_ns[run][sid]
+            for name in SETUP_TOPICS:  # the last set-up of this scenario, most telling topic first
+                found = [t for t, topic in setups if topic == name and start <= t < end]
+                if found:
+                    start = found[-1]
+                    break
+            goals = [t for t, topic in setups if topic == "/goal_pose" and start <= t < end]
+            entries[sid] = ScenarioEntry(sid, outcome_from_message(logged[1]) if logged else None, start, end,
+                                         goals[-1] if goals else None)
+        runs[run] = (entries, dict(sorted(msgs.items())))
+    first = next(iter(runs))
+    index = BagIndex(path, safe_echo(first), runs[first][0], runs[first][1], first_ns, counts, runs)
+    return index if run_id is None else index.select(run_id)
 
 
 def _messages(path: Path, names: set[str], start_ns: int | None = None, end_ns: int | None = None):
