@@ -83,12 +83,12 @@ def bag_rows(path: Path) -> list[dict]:
                 run = read_run(shown, sid)
             except BadInput:
                 continue
-            rows.append(map_row(shown, run, yaw_of(shown.scenario_msgs[sid].goal.pose.orientation),
+            rows.append(map_row(run, yaw_of(shown.scenario_msgs[sid].goal.pose.orientation),
                                 several=len(index.runs) > 1))
     return rows
 
 
-def map_row(index, run, goal_yaw: float, several: bool) -> dict:
+def map_row(run, goal_yaw: float, several: bool) -> dict:
     """One driven map's figures (``run``: its streams, ``robot_bag.RobotRun``); its run's id when the bag has several."""
     from ambiegen_ros.sims.outcome import NAV2_RECOVERIES, near_miss
 
@@ -98,7 +98,7 @@ def map_row(index, run, goal_yaw: float, several: bool) -> dict:
     turn = arrival_turn(run.poses, run.goal, goal_yaw)
     stalled = not outcome.failed and fired > 0
     close = np.hypot(run.poses[:, 1] - run.goal[0], run.poses[:, 2] - run.goal[1]) < 2.0
-    return {**({"run": index.run_id} if several else {}), "scenario": run.entry.scenario_id,
+    return {**({"run": run.run_id} if several else {}), "scenario": run.entry.scenario_id,
             "verdict": outcome.verdict, "failed": outcome.failed,
             "time": outcome.metrics.get("time"), "nav2_recoveries": recorded,
             "progress_failures_replayed": fired, "stalled": stalled,
