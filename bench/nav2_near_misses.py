@@ -19,7 +19,9 @@ into the goal and the goal's yaw.
 A bag may be a campaign's (one run) or a ``bench/nav2_maps.py`` batch's (a run per map, each map's
 row then names its run). One JSON row per bag is appended to ``bench/results/nav2_near_misses.jsonl`` (never rewritten), with
 every driven map's figures; ``--plot`` draws the arrival turns of the rows with the ``--plot-from``
-labels, near misses marked, and the tracks of the near misses around the goal.
+labels, near misses marked, and the tracks of the near misses around the goal. ``--compare
+mppi-restarts,mppi-random`` counts the stalls per map of two labels' bags from the results file
+and tests the first against the second (one-sided Fisher exact test over maps).
 """
 from __future__ import annotations
 
@@ -116,6 +118,29 @@ def summary(maps: list[dict]) -> dict:
             "arrival_turn_over_100": len(turned), "stalls_there": sum(m["stalled"] for m in turned)}
 
 
+def compare(rows: list[dict], label: str, baseline: str) -> dict:
+    """Stalls per map, ``label``'s bags against ``baseline``'s, with a one-sided Fisher exact test.
+
+    A bag counts once (its newest row), so reading a bag again does not double its maps. Maps of one
+    campaign are not independent draws: the test over maps is a hint; the per-bag counts say more."""
+    from scipy.stats import fisher_exact
+
+    newest = {(r["label"], r["bag"]): r for r in rows}  # file order: a later row replaces an earlier one
+    sides = {}
+    for name in (label, baseline):
+        bags = [r for (lab, _), r in newest.items() if lab == name]
+        if not bags:
+            raise SystemExit(f"no rows labelled {name!r} in {OUT.name}")
+        maps = [m for r in bags for m in r["maps"]]
+        sides[name] = {"bags": len(bags), "maps": len(maps), "stalls": sum(bool(m["stalled"]) for m in maps),
+                       "stalls_per_bag": [sum(bool(m["stalled"]) for m in r["maps"]) for r in bags],
+                       "arrival_turn_over_100": sum((m["arrival_turn_deg"] or 0.0) > 100.0 for m in maps)}
+    a, b = sides[label], sides[baseline]
+    p = fisher_exact([[a["stalls"], a["maps"] - a["stalls"]], [b["stalls"], b["maps"] - b["stalls"]]],
+                     alternative="greater").pvalue
+    return {label: a, baseline: b, "fisher_p_greater": round(float(p), 4)}
+
+
 def plot(rows: list[dict], labels: list[str], out: Path) -> None:
     import matplotlib
 
@@ -162,6 +187,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--label", default="", help="a name for these bags' rows (for --plot-from)")
     ap.add_argument("--plot", type=Path, help="draw the rows of the --plot-from labels here (PNG; not overwritten)")
     ap.add_argument("--plot-from", default="", help="comma-separated labels of rows in the results file")
+    ap.add_argument("--compare", metavar="LABEL,BASELINE",
+                    help="stalls per map of LABEL's bags against BASELINE's (one-sided Fisher exact test)")
     args = ap.parse_args(argv)
     from ambiegen_ros.core.runs import versions
 
@@ -174,6 +201,10 @@ def main(argv: list[str] | None = None) -> int:
             fh.write(json.dumps(row) + "\n")
         print(json.dumps({k: row[k] for k in ("label", "bag", "failures", "stalls", "near_misses",
                                               "arrival_turn_over_100", "stalls_there")} | {"maps": len(maps)}))
+    if args.compare:
+        label, _, baseline = args.compare.partition(",")
+        rows = [json.loads(line) for line in OUT.read_text().splitlines() if line.strip()] if OUT.exists() else []
+        print(json.dumps(compare(rows, label, baseline)))
     if args.plot:
         if args.plot.exists():
             raise SystemExit(f"{args.plot} exists: not overwritten (remove it first)")

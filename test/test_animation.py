@@ -268,3 +268,23 @@ def test_near_miss_bench_reads_every_run_of_a_batch_bag(bag, tmp_path, monkeypat
     rows = bag_rows(as_batch(bag, tmp_path / "batch.mcap"))
     assert [(r["run"], r["scenario"], r["failed"]) for r in rows] == [("batch-0", 0, True), ("batch-1", 0, True)]
     assert "run" not in bag_rows(bag)[0]  # one run: rows as before
+
+
+def test_near_miss_comparison_counts_each_bag_once(monkeypatch):
+    """``--compare``: stalls per map of one label against another; a bag read twice counts once."""
+    monkeypatch.syspath_prepend(str(REPO / "bench"))
+    from nav2_near_misses import compare
+
+    def row(label, bag, stalls, maps, turned=0):
+        return {"label": label, "bag": bag, "maps": [
+            {"stalled": k < stalls, "arrival_turn_deg": 150.0 if k < turned else None} for k in range(maps)]}
+
+    rows = [row("search", "s1.mcap", 1, 10), row("search", "s1.mcap", 6, 10, turned=7),  # read again: newest wins
+            row("search", "s2.mcap", 4, 10), row("random", "r1.mcap", 0, 20), row("random", "r2.mcap", 1, 20)]
+    result = compare(rows, "search", "random")
+    assert result["search"] == {"bags": 2, "maps": 20, "stalls": 10, "stalls_per_bag": [6, 4], "arrival_turn_over_100": 7}
+    assert result["random"]["stalls"] == 1 and result["random"]["maps"] == 40
+    assert result["fisher_p_greater"] < 0.001  # 10 of 20 against 1 of 40
+    assert compare(rows, "random", "search")["fisher_p_greater"] > 0.99
+    with pytest.raises(SystemExit, match="no rows labelled 'nope'"):
+        compare(rows, "search", "nope")
