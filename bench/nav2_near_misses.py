@@ -118,6 +118,11 @@ def summary(maps: list[dict]) -> dict:
             "arrival_turn_over_100": len(turned), "stalls_there": sum(m["stalled"] for m in turned)}
 
 
+def results() -> list[dict]:
+    """Every row of the results file, oldest first."""
+    return [json.loads(line) for line in OUT.read_text().splitlines() if line.strip()] if OUT.exists() else []
+
+
 def compare(rows: list[dict], label: str, baseline: str) -> dict:
     """Stalls per map, ``label``'s bags against ``baseline``'s, with a one-sided Fisher exact test.
 
@@ -203,13 +208,11 @@ def main(argv: list[str] | None = None) -> int:
                                               "arrival_turn_over_100", "stalls_there")} | {"maps": len(maps)}))
     if args.compare:
         label, _, baseline = args.compare.partition(",")
-        rows = [json.loads(line) for line in OUT.read_text().splitlines() if line.strip()] if OUT.exists() else []
-        print(json.dumps(compare(rows, label, baseline)))
+        print(json.dumps(compare(results(), label, baseline)))
     if args.plot:
         if args.plot.exists():
             raise SystemExit(f"{args.plot} exists: not overwritten (remove it first)")
-        rows = [json.loads(line) for line in OUT.read_text().splitlines() if line.strip()]
-        plot(rows, [s for s in args.plot_from.split(",") if s], args.plot)
+        plot(results(), [s for s in args.plot_from.split(",") if s], args.plot)
         print(args.plot)
     return 0
 
