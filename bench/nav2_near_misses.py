@@ -110,8 +110,13 @@ def map_row(run, goal_yaw: float, several: bool) -> dict:
             "track_near_goal": run.poses[close][::10, 1:3].round(2).tolist() if stalled else None}
 
 
+def turned_away(m: dict) -> bool:
+    """The route arrives more than 100 degrees off the goal's yaw: where MPPI's near misses lie."""
+    return (m["arrival_turn_deg"] or 0.0) > 100.0
+
+
 def summary(maps: list[dict]) -> dict:
-    turned = [m for m in maps if (m["arrival_turn_deg"] or 0.0) > 100.0]
+    turned = [m for m in maps if turned_away(m)]
     recorded = [m["near_miss"] for m in maps if m["near_miss"] is not None]
     return {"maps": len(maps), "failures": sum(m["failed"] for m in maps), "stalls": sum(m["stalled"] for m in maps),
             "near_misses": sum(recorded) if recorded else None,
@@ -139,7 +144,7 @@ def compare(rows: list[dict], label: str, baseline: str) -> dict:
         maps = [m for r in bags for m in r["maps"]]
         sides[name] = {"bags": len(bags), "maps": len(maps), "stalls": sum(bool(m["stalled"]) for m in maps),
                        "stalls_per_bag": [sum(bool(m["stalled"]) for m in r["maps"]) for r in bags],
-                       "arrival_turn_over_100": sum((m["arrival_turn_deg"] or 0.0) > 100.0 for m in maps)}
+                       "arrival_turn_over_100": sum(turned_away(m) for m in maps)}
     a, b = sides[label], sides[baseline]
     p = fisher_exact([[a["stalls"], a["maps"] - a["stalls"]], [b["stalls"], b["maps"] - b["stalls"]]],
                      alternative="greater").pvalue
