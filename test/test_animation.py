@@ -11,6 +11,7 @@ safety net, never the thing tested.
 """
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -288,3 +289,25 @@ def test_near_miss_comparison_counts_each_bag_once(monkeypatch):
     assert compare(rows, "random", "search")["fisher_p_greater"] > 0.99
     with pytest.raises(SystemExit, match="no rows labelled 'nope'"):
         compare(rows, "search", "nope")
+
+
+def test_nav2_search_report_tests_each_side_against_random_from_three_runs(tmp_path, monkeypatch, capsys):
+    """``bench/nav2_search.py --report``: the exact one-sided test from 3 runs a side, marked a hint
+    under 10; a side with fewer runs gets no test."""
+    monkeypatch.syspath_prepend(str(REPO / "bench"))
+    import nav2_search
+
+    def row(controller, algorithm, distinct):
+        return {"controller": controller, "algorithm": algorithm, "mode": "in_the_loop", "config": "c.yaml",
+                "nav2_hours": 1.0, "distinct_new_failures": distinct, "known_failures": 0}
+
+    rows = [row("dwb", "random", 0) for _ in range(3)] + [row("dwb", "nsga2", d) for d in (2, 1, 2)]
+    rows += [row("mppi", "random", 0), row("mppi", "random", 0), row("mppi", "nsga2", 3), row("mppi", "nsga2", 3)]
+    monkeypatch.setattr(nav2_search, "OUT", tmp_path / "nav2_search.jsonl")
+    nav2_search.OUT.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    assert nav2_search.report() == 0
+    out = capsys.readouterr().out
+    dwb, mppi = out.split("## mppi")
+    assert "nsga2 (in_the_loop, c.yaml) > random, 3 against 3 runs: one-sided Mann-Whitney U = 9, exact p = 0.050" in dwb
+    assert "(a hint: under 10 runs a side)" in dwb
+    assert "> random" not in mppi  # 2 runs a side: no test

@@ -5,7 +5,8 @@ import math
 
 import pytest
 
-from ambiegen_ros.core.stats import cliffs_delta, compare, magnitude, mann_whitney, smallest_p, spearman
+from ambiegen_ros.core.stats import (cliffs_delta, compare, greater_exact, magnitude, mann_whitney, smallest_p,
+                                     spearman)
 
 
 def test_cliffs_delta_hand_counts():
@@ -70,3 +71,23 @@ def test_spearman_by_hand():
     assert spearman([1, 2, 3], [30, 20, 10])[0] == pytest.approx(-1.0)
     assert math.isnan(spearman([1, 2, 3], [5, 5, 5])[0])  # constant side: undefined, not 0
     assert spearman([1, 2, None, 4, 5], [2, 4, 1, 8, 10])[2] == 4  # pairs with a missing value are dropped
+
+
+def test_greater_exact_counts_every_split_with_ties():
+    # 2, 1, 2 against 0, 0, 0: a holds the three largest in 1 of C(6, 3) = 20 splits
+    assert greater_exact([2, 1, 2], [0, 0, 0]) == (9.0, pytest.approx(0.05))
+    # one value apart: a holds the 1 in half the splits; U = 3 wins + 6 ties / 2
+    assert greater_exact([1, 0, 0], [0, 0, 0]) == (6.0, pytest.approx(0.5))
+    # nothing apart: no evidence at all
+    assert greater_exact([0, 0, 0], [0, 0, 0]) == (4.5, pytest.approx(1.0))
+    assert greater_exact([0, 0, 0], [2, 1, 2])[1] == pytest.approx(1.0)
+    assert all(math.isnan(v) for v in greater_exact([], [1, 2]))
+
+
+def test_greater_exact_agrees_with_scipy_without_ties():
+    from scipy.stats import mannwhitneyu
+
+    for a, b in (([1, 3, 5], [2, 4, 6]), ([4, 5, 6, 9], [1, 2, 3]), ([1, 2, 8], [3, 4, 5, 6, 7])):
+        want = mannwhitneyu(a, b, alternative="greater", method="exact")
+        assert greater_exact(a, b) == (float(want.statistic), pytest.approx(want.pvalue))
+        assert greater_exact(a, b, limit=1)[1] == pytest.approx(mannwhitneyu(a, b, alternative="greater").pvalue)
