@@ -25,3 +25,15 @@ def write_result(name: str, figures: dict) -> Path:
     path = RESULTS / f"{name}.json"
     path.write_text(json.dumps(doc, indent=2) + "\n")
     return path
+
+
+def read_rows(path: Path) -> list[dict]:
+    """Every row of a JSON-lines results file, oldest first (none when it does not exist yet)."""
+    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()] if path.exists() else []
+
+
+def append_row(path: Path, row: dict) -> None:
+    """Add one row to a JSON-lines results file: appended, never rewritten."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a") as fh:
+        fh.write(json.dumps(row) + "\n")

@@ -42,6 +42,8 @@ REPO = Path(__file__).resolve().parents[1]
 for extra in (REPO, REPO / "test", REPO / "test" / "real_ros"):
     sys.path.insert(0, str(extra))
 
+from _common import append_row, read_rows  # noqa: E402
+
 import numpy as np  # noqa: E402
 
 RESULTS = REPO / "docs" / "results" / "nav2"
@@ -63,10 +65,7 @@ def problem_config(path: str) -> dict:
 
 
 def done_keys(label: str, time_scale: float) -> set[str]:
-    if not RUNS.exists():
-        return set()
-    rows = [json.loads(line) for line in RUNS.read_text().splitlines() if line.strip()]
-    return {r["key"] for r in rows if r["label"] == label and r["time_scale"] == time_scale}
+    return {r["key"] for r in read_rows(RUNS) if r["label"] == label and r["time_scale"] == time_scale}
 
 
 def pick_maps(spec: str, count: int, profile: str, seed: int, overrides: dict | None = None) -> list:
@@ -211,9 +210,7 @@ def run_batch(args) -> int:
                    "failure_point": list(res.failure_point) if res.failure_point is not None else None,
                    "trajectory_every_10": traj, "mcap": str(mcap), "wall_start_ns": w0, "wall_end_ns": time.time_ns(),
                    "when": datetime.now(timezone.utc).isoformat(timespec="seconds"), "versions": versions()}
-            RUNS.parent.mkdir(parents=True, exist_ok=True)
-            with open(RUNS, "a") as fh:  # appended, never rewritten
-                fh.write(json.dumps(row) + "\n")
+            append_row(RUNS, row)
             print(f"map {i}: {res.failure_kind} ({res.detail}); Nav2 {m.get('nav2_status')} "
                   f"{m.get('nav2_error_code')} {m.get('nav2_error_msg') or ''}, recoveries {m.get('nav2_recoveries')}; "
                   f"early {m.get('early_verdict')} "
@@ -331,7 +328,7 @@ def report(args) -> int:
     from ambiegen_ros.sims.signature import DistinctFailures, signature
     from ambiegen_ros.viz.execution import save_execution_plot
 
-    rows = [json.loads(line) for line in RUNS.read_text().splitlines() if line.strip()]
+    rows = read_rows(RUNS)
     entries = known_failures.load(REPO / "config" / "nav2" / "known_failures.yaml")
     lines = ["# Nav2 on AmbieGen's maps (measured; appended by `bench/nav2_maps.py`)", "",
              "| label | time scale | maps | failures | rate | known (not counted) | distinct new (by place and kind) | "

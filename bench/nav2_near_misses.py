@@ -36,6 +36,8 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+
+from _common import append_row, read_rows  # noqa: E402
 OUT = REPO / "bench" / "results" / "nav2_near_misses.jsonl"
 PROGRESS_RADIUS, PROGRESS_TIME = 0.5, 10.0  # SimpleProgressChecker: required_movement_radius, movement_time_allowance
 ARRIVAL_FROM, ARRIVAL_TO = 1.5, 0.6  # m from the goal: the stretch whose direction of travel is the arrival
@@ -125,7 +127,7 @@ def summary(maps: list[dict]) -> dict:
 
 def results() -> list[dict]:
     """Every row of the results file, oldest first."""
-    return [json.loads(line) for line in OUT.read_text().splitlines() if line.strip()] if OUT.exists() else []
+    return read_rows(OUT)
 
 
 def compare(rows: list[dict], label: str, baseline: str) -> dict:
@@ -206,9 +208,7 @@ def main(argv: list[str] | None = None) -> int:
         maps = bag_rows(bag)
         row = {"label": args.label, "bag": bag.name, **summary(maps), "maps": maps,
                "when": datetime.now(timezone.utc).isoformat(timespec="seconds"), "versions": versions()}
-        OUT.parent.mkdir(parents=True, exist_ok=True)
-        with open(OUT, "a") as fh:  # appended, never rewritten
-            fh.write(json.dumps(row) + "\n")
+        append_row(OUT, row)
         print(json.dumps({k: row[k] for k in ("label", "bag", "failures", "stalls", "near_misses",
                                               "arrival_turn_over_100", "stalls_there")} | {"maps": len(maps)}))
     if args.compare:

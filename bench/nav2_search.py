@@ -37,6 +37,8 @@ REPO = Path(__file__).resolve().parents[1]
 for extra in (REPO, REPO / "test", REPO / "test" / "real_ros"):
     sys.path.insert(0, str(extra))
 
+from _common import append_row, read_rows  # noqa: E402
+
 OUT = REPO / "bench" / "results" / "nav2_search.jsonl"
 DEFAULT_CONFIG = "config/robot_small.yaml"
 MIN_RUNS = 3  # runs a side before a test is printed (issue 29's minimum)
@@ -109,7 +111,7 @@ def measure(args, mcap: Path, code, wall: float | None) -> dict:
 def report() -> int:
     from ambiegen_ros.core.stats import greater_exact
 
-    rows = [json.loads(line) for line in OUT.read_text().splitlines() if line.strip()] if OUT.exists() else []
+    rows = read_rows(OUT)
     for controller in sorted({r["controller"] for r in rows}):
         mine = [r for r in rows if r["controller"] == controller]
         print(f"## {controller}")
@@ -171,9 +173,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def append(row: dict) -> int:
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    with open(OUT, "a") as fh:  # appended, never rewritten
-        fh.write(json.dumps(row) + "\n")
+    append_row(OUT, row)
     print(json.dumps({key: row[key] for key in ("controller", "algorithm", "mode", "seed", "exit", "wall_s", "nav2_runs",
                                                 "nav2_hours", "failures", "known_failures", "distinct_new_failures",
                                                 "kinds", "early_verdicts", "near_misses")}), flush=True)

@@ -25,6 +25,8 @@ REPO = Path(__file__).resolve().parents[1]
 for extra in (REPO, REPO / "test", REPO / "test" / "real_ros", REPO / "test" / "helpers"):
     sys.path.insert(0, str(extra))
 
+from _common import append_row, read_rows  # noqa: E402
+
 OUT = REPO / "bench" / "results" / "nav2_stacks.jsonl"
 
 
@@ -113,9 +115,7 @@ def main(argv: list[str] | None = None) -> int:
     install = je.working_tree_install(logs / "ws")
     for k in args.stacks:
         row = run_one(k, args, install, logs, args.hosts)
-        OUT.parent.mkdir(parents=True, exist_ok=True)
-        with open(OUT, "a") as fh:  # appended, never rewritten
-            fh.write(json.dumps(row) + "\n")
+        append_row(OUT, row)
         print(json.dumps({key: row[key] for key in ("stacks", "hosts", "exit", "maps_answered", "nav2_runs", "wall_s",
                                                     "first_to_last_result_s", "nav2_runs_per_hour", "verdicts",
                                                     "workers")}), flush=True)
