@@ -121,8 +121,22 @@ class Dispatcher:
         self.duplicates = 0
 
     def begin(self, now: float) -> None:
-        """Start the ``worker_wait`` clock (when the first scenarios are about to go out)."""
+        """Start the ``worker_wait`` clock (when the first scenarios are about to go out), and the
+        listening: a pause between here and the first tick is the caller's, not its workers'."""
         self._start = now
+        self._last_tick, self._heard = now, False
+
+    def busy(self, start: float, end: float) -> None:
+        """The caller read nothing from ``start`` to ``end`` (a long step of its own: asking the
+        search for a batch, whose first surrogate evaluation compiles): that stretch is no worker's
+        silence. The tick's own guess (a pause with no heartbeat read) misses it when a heartbeat
+        was read just before the step, and then every worker looked lost at once and a whole
+        random batch of 100 Nav2 maps was offered to anyone (docs/external_sut.md)."""
+        gap = end - start
+        if gap <= 0:
+            return
+        self._workers = {w: min(end, seen + gap) for w, seen in self._workers.items()}
+        self._last_tick = end if self._last_tick is None else max(self._last_tick, end)
 
     # --- inputs --------------------------------------------------------------------------
     def add(self, scenario_id: int, payload: Any) -> None:

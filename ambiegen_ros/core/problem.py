@@ -149,6 +149,11 @@ class Problem(ABC):
         """
         return G, lengths
 
+    def loop_f1(self, outcome: Any) -> float:
+        """F1 of an executed scenario (a ``sims.outcome.Outcome``) for a search in the loop.
+        Default: the execution's first objective; a problem may offer others in its config."""
+        return outcome.f1
+
     def search_operators(self, settings: Any) -> dict[str, Any]:
         """pymoo operators this problem replaces for its profile (keys of pymoo's GA/NSGA2
         arguments: ``eliminate_duplicates``, ``mutation``, ...). Default: none, the generic ones."""

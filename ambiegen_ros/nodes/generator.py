@@ -61,14 +61,15 @@ from . import run_node
 SLICE_S = 0.05  # longest stretch of search work between two executor turns
 
 
-def loop_evaluation(outcomes: list) -> Evaluation:
-    """What an in-the-loop search is told of executed scenarios: each one's F1 (``Outcome.f1``).
+def loop_evaluation(outcomes: list, f1=lambda o: o.f1) -> Evaluation:
+    """What an in-the-loop search is told of executed scenarios: each one's F1 (``f1``: the
+    problem's ``loop_f1``; default ``Outcome.f1``).
     An INVALID_TEST (no reference passes it either), an error or a timeout is no failure to climb
     towards: F1 0, invalid. A known failure (``sims.known_failures``, e.g. NavFn's path cap) is a
     valid test that teaches nothing new: F1 0, so the search does not climb towards it either."""
     unusable = ("invalid_scenario", "error", "sim_timeout", "invalid_test")
     usable = np.array([o.failure_kind not in unusable for o in outcomes])
-    f1 = np.array([o.f1 if ok and not is_known(o) else 0.0 for o, ok in zip(outcomes, usable)])
+    f1 = np.array([f1(o) if ok and not is_known(o) else 0.0 for o, ok in zip(outcomes, usable)])
     reasons = [None if ok else f"{o.failure_kind}: {o.detail}" for o, ok in zip(outcomes, usable)]
     return Evaluation(f1, usable, reasons, {"failed": np.array([o.failed for o in outcomes])})
 
@@ -165,7 +166,10 @@ class Generator:
                     break
         elif self.state == "executing":
             if self.mode == "in_the_loop" and not self.batch and not self.closed:
-                if not self.ask_batch():
+                asked = time.monotonic()
+                more = self.ask_batch()
+                self.remote.dispatcher.busy(asked, time.monotonic())
+                if not more:
                     self.finish()
                 # asking can take long (a first JIT compile): read the heartbeats and results
                 # that came meanwhile before judging workers on the next tick
@@ -252,7 +256,7 @@ class Generator:
         if not self.batch or any(i not in self.remote.outcomes for i in self.batch):
             return
         outcomes = self.remote.take(self.batch)  # told once: nothing of a generation is kept after
-        self.search.tell(loop_evaluation(outcomes))
+        self.search.tell(loop_evaluation(outcomes, self.problem.loop_f1))
         self.batch = []
 
     def write_suite(self, result) -> None:

@@ -67,6 +67,7 @@ DIAGONAL_RULES = ("both_free", "one_free", "always")
 INFLATION_RULES = ("overlap", "centre")  # how the robot radius blocks cells (see ``inflation_footprint``)
 INFLATION_RULE = {"refined": "overlap", "replication": "centre"}
 OBJECTIVES = ("route", "narrow")  # what F1 measures (``RobotConfig.objective``)
+LOOP_OBJECTIVES = ("time", "time_share")  # what F1 of an execution measures in the loop (``RobotConfig.loop_objective``)
 ENGINES = ("auto", "numba", "numpy")  # batch planner: numba when importable, else scipy
 NO_PATH = "no path from start to goal"
 
@@ -149,6 +150,10 @@ class RobotConfig:
     route_cap: float = 0.0  # m; > 0: F1 folds back above it (see ``fold_above``); 0 = off
     objective: str = "route"  # F1: "route" = the A* route length (the paper's) | "narrow" = ``narrow_route_metres``
     narrow_clearance: float = 2.0  # m from a wall cell's centre below which a route cell is narrow ("narrow")
+    # in the loop, F1 of an execution: "time" = the time to the goal (the time limit on a failure;
+    # the paper's full model) | "time_share" = that time over the run's time limit (1 on a failure):
+    # how much of its allowance the stack used, whatever the route's length (``RobotProblem.loop_f1``)
+    loop_objective: str = "time"
     profile: str = DEFAULT_PROFILE  # replication | refined (see the module docstring)
 
     def __post_init__(self):
@@ -168,6 +173,9 @@ class RobotConfig:
             raise ScenarioError("config.robot_radius", "must be >= 0")
         if self.objective not in OBJECTIVES:
             raise ScenarioError("config.objective", f"unknown objective {self.objective!r}", "|".join(OBJECTIVES))
+        if self.loop_objective not in LOOP_OBJECTIVES:
+            raise ScenarioError("config.loop_objective", f"unknown objective {self.loop_objective!r}",
+                                "|".join(LOOP_OBJECTIVES))
         if not self.narrow_clearance > 0:
             raise ScenarioError("config.narrow_clearance", "must be positive")
         if not self.route_cap >= 0:
@@ -620,6 +628,22 @@ class RobotProblem(Problem):
 
     def layout(self):
         return REFINED_LAYOUT if self.profile == "refined" else REPLICATION_LAYOUT
+
+    def loop_f1(self, outcome: Any) -> float:
+        """``loop_objective: time_share``: a pass's time over its time limit, 1 for a failure. The
+        time alone climbs towards long routes, and so towards NavFn's known cap; the share climbs
+        towards maps where the stack struggles (recoveries, detours, slow approaches), which is
+        where its stalls and timeouts lie (docs/external_sut.md, "In the loop")."""
+        if self.config.loop_objective == "time":
+            return super().loop_f1(outcome)
+        if outcome.failed:
+            return 1.0
+        time, limit = outcome.metrics.get("time"), outcome.metrics.get("time_limit")
+        try:
+            share = float(time) / float(limit)
+        except (TypeError, ValueError, ZeroDivisionError):
+            return 0.0  # no time on record: nothing to climb
+        return min(max(share, 0.0), 1.0) if math.isfinite(share) else 0.0
 
     # --- sampling ----------------------------------------------------------------------
     def sample(self, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

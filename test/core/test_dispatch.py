@@ -218,6 +218,50 @@ def test_a_pause_of_the_caller_does_not_kill_its_workers_nor_offer_to_anyone():
     assert [e.worker for e in d.drain_events() if e.kind == "lost"] == ["a", "b"]
 
 
+def test_a_long_first_ask_after_begin_neither_loses_the_worker_nor_offers_the_batch_to_anyone():
+    """MPPI random seed 3: the generator began, read one more heartbeat, then asked the search for
+    its batch of 100 maps (5.8 s: a first surrogate evaluation). Its first tick found the Nav2
+    adapter silent, declared it lost and offered all 100 maps to anyone, so the budget could
+    withdraw none of them. Told the ask was its own pause, the dispatcher sends one map, to the
+    adapter."""
+    d = Dispatcher(result_timeout=400, worker_timeout=3, worker_wait=2, max_attempts=2, max_in_flight=1)
+    d.heartbeat("nav2", 0.0)
+    d.begin(0.1)
+    d.heartbeat("nav2", 0.2)  # read before the ask: the tick's own guess would see a listening pause
+    for i in range(100):
+        d.add(i, i)
+    d.busy(0.3, 6.1)
+    sent, gone = d.tick(6.1)
+    assert [(x.scenario_id, x.worker) for x in sent] == [(0, "nav2")] and not gone
+    assert not [e for e in d.drain_events() if e.kind == "lost"]
+    assert d.withdraw() == list(range(1, 100))  # the budget can still take back what was not sent
+
+
+def test_the_pause_from_begin_to_the_first_tick_is_the_callers():
+    """No tick before ``begin``: the stretch from it to the first tick, with no heartbeat read, is
+    the caller's pause (before, the first tick measured none and judged the worker by it)."""
+    d = make()
+    d.heartbeat("a", 0.0)
+    d.begin(0.5)
+    sent, _ = d.tick(5.0)
+    assert [x.worker for x in sent] == ["a"]
+    assert not [e for e in d.drain_events() if e.kind == "lost"]
+
+
+def test_busy_is_no_silence_before_it():
+    """Silence before and after the caller's pause still counts: 1.5 s + 1.0 s > 2 s is lost."""
+    d = make()
+    d.heartbeat("a", 0.0)
+    d.begin(0.0)
+    for k in range(1, 16):  # listening, a tick every 0.1 s
+        d.tick(k / 10)
+    d.busy(1.5, 10.0)
+    d.tick(10.0)
+    assert not [e for e in d.drain_events() if e.kind == "lost"]
+    d.tick(10.6)
+    assert [e.worker for e in d.drain_events() if e.kind == "lost"] == ["a"]
+
+
 def test_a_slow_worker_queue_is_not_a_timeout():
     """Executions of 8 s, four queued at a time, result_timeout 10: the fourth waits 32 s in the
     worker's queue, yet nothing is late, re-sent or executed twice (the launch on Fast DDS with a
