@@ -2,7 +2,7 @@
 in distinct new certified failures.
 
     python bench/nav2_search.py --setup ~/jazzy-verify/install/setup.bash --algorithm random --seed 1 --nav2-hours 1
-    python bench/nav2_search.py --setup ... --algorithm ga --mode in_the_loop --seed 1 --nav2-hours 1
+    python bench/nav2_search.py --setup ... --algorithm ga --mode in_the_loop --config config/robot_small_loop.yaml --seed 1
     python bench/nav2_search.py --report
 
 Each run is one ``nav2_campaign.launch.py`` campaign on the maps of ``config/robot_small.yaml``
@@ -66,7 +66,7 @@ def run_one(args, install: Path, logs: Path) -> dict:
     graph.ros("launch", launch, install, je.ros_env(args.domain_id))
     try:
         code = graph.procs["launch"].wait(budget + args.grace)
-    except subprocess.TimeoutExpired:  # e.g. a whole batch still in flight: stop it, keep what ran
+    except subprocess.TimeoutExpired:  # a hung stack, or maps offered to anyone: stop it, keep what ran
         print(f"campaign still running {budget + args.grace:.0f} s in: stopped (SIGINT), measured as it stands",
               file=sys.stderr, flush=True)
         graph.stop("launch", timeout=120.0)
@@ -143,12 +143,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--config", default=DEFAULT_CONFIG,
                     help="run config under the repository (config/robot_small_narrow.yaml: the search aimed at the stack; "
-                         "robot_small_narrow_restarts.yaml: the same as 16 restarts)")
+                         "robot_small_narrow_restarts.yaml: the same as 16 restarts; robot_small_loop.yaml: GA in the loop, "
+                         "scored by the share of its time limit each Nav2 run used)")
     ap.add_argument("--evaluations", type=int, default=0,
                     help="surrogate mode: the search's surrogate evaluations (0 = the config's); Nav2 then runs its suite")
     ap.add_argument("--nav2-hours", type=float, default=1.0, help="simulated hours of Nav2 per run")
     ap.add_argument("--grace", type=float, default=1800.0,
-                    help="wall seconds past the budget for the maps in flight (in the loop, a whole batch) to finish; "
+                    help="wall seconds past the budget for the map in flight (one per stack) to finish; "
                          "then the campaign is stopped and measured as it stands")
     ap.add_argument("--domain-id", type=int, default=9, help="outside the test suite's pool (10-101)")
     ap.add_argument("--report", action="store_true")

@@ -96,7 +96,7 @@ def test_the_world_alone_speaks_nav2s_topics(graph):
 
 
 def test_the_nd_stack_behind_the_adapter_gives_the_in_process_verdicts_on_a_loaded_machine(graph):
-    """The 20 maps of ``bench/nd_stack.py``'s failing setting (``safety_dist`` 0.3 m), plus a map
+    """Maps of ``bench/nd_stack.py``'s failing setting (``safety_dist`` 0.3 m), two of each verdict, plus a map
     whose reference fails (an invalid test, never sent), through ``robot_world`` (lockstep) +
     ``nd_driver`` + ``sut_adapter`` with three busy loops beside them: every verdict, its time and
     the whole path equal, to the bit, the in-process full model fed what crosses the wire (float32
@@ -115,6 +115,10 @@ def test_the_nd_stack_behind_the_adapter_gives_the_in_process_verdicts_on_a_load
         wires = [full.execute(sc, seed=0) for sc in scs]
     assert wires[-1].failure_kind == "invalid_test"
     assert {w.failure_kind for w in wires[:-1]} >= {"none", "stall", "loiter"}  # the maps give every kind
+    # the first two maps of each verdict and the invalid test (7 scenarios, not 21: this was the
+    # suite's slowest test on 2 cores, 244 s; bench/nd_stack.py runs all 20)
+    keep = [i for i, w in enumerate(wires[:-1]) if [v.failure_kind for v in wires[:i]].count(w.failure_kind) < 2]
+    scs, wires = [scs[i] for i in keep] + scs[-1:], [wires[i] for i in keep] + wires[-1:]
     procs, node = graph()
     procs.start("world", "sim_nodes.robot_world", **LOCKSTEP)
     procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True, paired_start=True, **{"sim.safety_dist": FAILING_SAFETY_DIST})

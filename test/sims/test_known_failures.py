@@ -73,24 +73,27 @@ def test_an_in_the_loop_search_is_not_rewarded_for_a_known_failure():
     assert ev.f1.tolist() == [0.0, 300.0, 61.5, 0.0]
 
 
-def test_the_time_share_in_the_loop_ranks_a_struggle_over_a_long_easy_route():
-    """``loop_objective: time_share``: a pass of 120 s on a route allowed 300 s (a near miss: 0.4)
-    ranks above a pass of 150 s allowed 1,000 s (a long, easy route: 0.15), which the time alone
-    ranks first; a failure scores 1 and a known one still 0."""
-    from ambiegen_ros.nodes.generator import loop_evaluation
+def test_the_pace_in_the_loop_ranks_a_struggle_over_a_long_easy_route():
+    """``loop_objective: pace``: a pass of 120 s on a 25 m route (a near miss: 4.8 s/m) ranks above
+    a pass of 150 s on a 60 m route (a long, easy one: 2.5 s/m), which the time alone ranks first;
+    a failure scores its time limit's pace (300 s on 25 m: 12), a known one still 0, a run with no
+    route on record 0."""
     from ambiegen_ros.core.attributes import ScenarioError
+    from ambiegen_ros.nodes.generator import loop_evaluation
     from ambiegen_ros.problems.robot import RobotProblem
 
-    def passed(time, limit):
+    def passed(time, route):
         return Outcome(objectives={"robot_time": time}, failed=False, failure_kind="none", detail="goal reached",
-                       metrics={"time": time, "time_limit": limit})
+                       metrics={"time": time, "time_limit": 300.0, "route_length_m": route})
 
     (cap,) = known_failures.load(SHIPPED)
     known = known_failures.mark(failure(route=120.0), [cap])
-    runs = [passed(120.0, 300.0), passed(150.0, 1000.0), failure(kind="collision"), known]
+    new = failure(kind="collision", route=25.0)
+    new.metrics["time_limit"] = 300.0
+    runs = [passed(120.0, 25.0), passed(150.0, 60.0), new, known, passed(80.0, None)]
     by_time = loop_evaluation(runs, RobotProblem(profile="refined").loop_f1)
     assert by_time.f1[1] > by_time.f1[0]
-    share = loop_evaluation(runs, RobotProblem(profile="refined", loop_objective="time_share").loop_f1)
-    assert share.f1.tolist() == pytest.approx([0.4, 0.15, 1.0, 0.0])
+    pace = loop_evaluation(runs, RobotProblem(profile="refined", loop_objective="pace").loop_f1)
+    assert pace.f1.tolist() == pytest.approx([4.8, 2.5, 12.0, 0.0, 0.0])
     with pytest.raises(ScenarioError, match="loop_objective"):
-        RobotProblem(profile="refined", loop_objective="recoveries")
+        RobotProblem(profile="refined", loop_objective="time_share")
