@@ -67,7 +67,7 @@ DIAGONAL_RULES = ("both_free", "one_free", "always")
 INFLATION_RULES = ("overlap", "centre")  # how the robot radius blocks cells (see ``inflation_footprint``)
 INFLATION_RULE = {"refined": "overlap", "replication": "centre"}
 OBJECTIVES = ("route", "narrow")  # what F1 measures (``RobotConfig.objective``)
-LOOP_OBJECTIVES = ("time", "pace")  # what F1 of an execution measures in the loop (``RobotConfig.loop_objective``)
+LOOP_OBJECTIVES = ("time", "pace", "time_share")  # what F1 of an execution measures in the loop (``RobotConfig.loop_objective``)
 ENGINES = ("auto", "numba", "numpy")  # batch planner: numba when importable, else scipy
 NO_PATH = "no path from start to goal"
 
@@ -152,7 +152,8 @@ class RobotConfig:
     narrow_clearance: float = 2.0  # m from a wall cell's centre below which a route cell is narrow ("narrow")
     # in the loop, F1 of an execution: "time" = the time to the goal (the time limit on a failure;
     # the paper's full model) | "pace" = seconds per metre of the clearance route (a failure: the time
-    # limit's, above any pass): how hard the stack found the map, whatever its length (``loop_f1``)
+    # limit's, above any pass): how hard the stack found the map, whatever its length (``loop_f1``) |
+    # "time_share" = the time over the time limit (1 on a failure): measured, and it climbs route length
     loop_objective: str = "time"
     profile: str = DEFAULT_PROFILE  # replication | refined (see the module docstring)
 
@@ -635,16 +636,18 @@ class RobotProblem(Problem):
         routes (and NavFn's known cap); so does the time over the time limit, whose 300 s floor
         makes it the time on most maps (Spearman 0.95 with the route on a GA run of DWB). The pace
         of MPPI's near misses was 2.75-5.05 s/m against 2.19-3.57 for plain passes, and of a DWB
-        failure 7.9 (docs/external_sut.md, "In the loop")."""
+        failure 7.9 (docs/external_sut.md, "In the loop"). ``time_share`` stays, so that the bags
+        of the campaign that measured it replay."""
         if self.config.loop_objective == "time":
             return super().loop_f1(outcome)
         m = outcome.metrics
         try:
-            route = float(m.get("route_length_m") or 0.0)
-            pace = float(m["time_limit"] if outcome.failed else m["time"]) / route
+            spent = float(m["time_limit"] if outcome.failed else m["time"])
+            per = float(m["time_limit"] if self.config.loop_objective == "time_share" else m.get("route_length_m") or 0.0)
+            value = spent / per
         except (KeyError, TypeError, ValueError, ZeroDivisionError):
             return 0.0  # no route or no time on record: nothing to climb
-        return pace if math.isfinite(pace) and pace > 0 else 0.0
+        return value if math.isfinite(value) and value > 0 else 0.0
 
     # --- sampling ----------------------------------------------------------------------
     def sample(self, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
