@@ -97,5 +97,8 @@ def test_the_pace_in_the_loop_ranks_a_struggle_over_a_long_easy_route():
     assert pace.f1.tolist() == pytest.approx([4.8, 2.5, 12.0, 0.0, 0.0])
     share = loop_evaluation(runs, RobotProblem(profile="refined", loop_objective="time_share").loop_f1)
     assert share.f1.tolist() == pytest.approx([0.4, 0.5, 1.0, 0.0, 80.0 / 300.0])  # the time, over a floor
+    ours = Outcome(objectives={"robot_time": 60.0}, failed=False, failure_kind="none", detail="goal reached",
+                   metrics={"time": 60.0, "time_limit": 300.0, "route_length": 20.0})  # our full model's name
+    assert RobotProblem(profile="refined", loop_objective="pace").loop_f1(ours) == pytest.approx(3.0)
     with pytest.raises(ScenarioError, match="loop_objective"):
         RobotProblem(profile="refined", loop_objective="recoveries")
