@@ -144,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--config", default=DEFAULT_CONFIG,
                     help="run config under the repository (config/robot_small_narrow.yaml: the search aimed at the stack; "
                          "robot_small_narrow_restarts.yaml: the same as 16 restarts; robot_small_loop.yaml: GA in the loop, "
-                         "scored by the share of its time limit each Nav2 run used)")
+                         "scored by each Nav2 run's pace, seconds per metre of its clearance route)")
     ap.add_argument("--evaluations", type=int, default=0,
                     help="surrogate mode: the search's surrogate evaluations (0 = the config's); Nav2 then runs its suite")
     ap.add_argument("--nav2-hours", type=float, default=1.0, help="simulated hours of Nav2 per run")
