@@ -33,7 +33,7 @@ setup(
     python_requires=">=3.10",
     install_requires=DEPS["install_requires"](),  # ambiegen_ros/deps.py: pins and minimums, and why
     # ranges for users' own environments; scripts/setup.sh and CI install the versions pinned in constraints.txt
-    extras_require={"test": ["pytest>=8", "pytest-random-order>=1.1", "hypothesis>=6.100", "mcap-ros2-support==0.6.0",
+    extras_require={"test": ["pytest>=8", "pytest-random-order>=1.1", "pytest-xdist>=3.5", "hypothesis>=6.100", "mcap-ros2-support==0.6.0",
                              "mypy>=1.10",
                              # the manual in docs/ (Sphinx + MyST; test/test_docs.py builds it with -W)
                              "sphinx>=7.4,<10", "myst-parser>=4.0,<6"]},

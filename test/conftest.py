@@ -1,4 +1,10 @@
-"""Suite-wide setup: this tree importable, a headless matplotlib, and ROS domain ids per test.
+"""Suite-wide setup: this tree importable, a headless matplotlib, ROS domain ids per test, and workers.
+
+``pytest.ini`` runs the suite on pytest-xdist workers, one test file per worker at a time
+(``--dist loadfile``: a module's shared fixtures, such as a recorded campaign, are built once).
+``-n auto`` means one worker per core this process may use, at most ``MAX_WORKERS``; ``-n 0`` runs
+everything in this process. Most time is spent waiting on node subprocesses, so two workers on two
+cores keep both busy where one left one idle (docs/testing.md).
 
 ``ros_domain`` gives a test a ROS_DOMAIN_ID no other test holds, in this run or in any other
 pytest run on the machine at the same time (several checkouts, CI jobs, agents): an id is held
@@ -22,6 +28,15 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 # (32768+); 72-73 stay fixed in test/ros/test_multihost.py (inside its own network namespaces).
 DOMAIN_POOL = [d for d in range(10, 102) if d not in (72, 73)]
 LOCK_DIR = Path(tempfile.gettempdir()) / "ambiegen-test-domains"
+
+
+MAX_WORKERS = 4  # each worker starts its own node subprocesses; more would crowd a shared machine
+
+
+def pytest_xdist_auto_num_workers(config) -> int:
+    """``-n auto``: the cores this process may run on (not the machine's), at most ``MAX_WORKERS``."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    return max(1, min(cores, MAX_WORKERS))
 
 
 _used_here: set[int] = set()  # ids this process has had: a DDS domain keeps its settings in-process
