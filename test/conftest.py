@@ -3,8 +3,8 @@
 ``pytest.ini`` runs the suite on pytest-xdist workers, one test file per worker at a time
 (``--dist loadfile``: a module's shared fixtures, such as a recorded campaign, are built once).
 ``-n auto`` means one worker per core this process may use, at most ``MAX_WORKERS``; ``-n 0`` runs
-everything in this process. Most time is spent waiting on node subprocesses, so two workers on two
-cores keep both busy where one left one idle (docs/testing.md).
+everything in this process. Part of the suite waits on node subprocesses, and a second worker
+uses that time (measured in docs/testing.md: 692 s against 839 s on 2 cores).
 
 ``ros_domain`` gives a test a ROS_DOMAIN_ID no other test holds, in this run or in any other
 pytest run on the machine at the same time (several checkouts, CI jobs, agents): an id is held
