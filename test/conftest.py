@@ -35,8 +35,9 @@ MAX_WORKERS = 4  # each worker starts its own node subprocesses; more would crow
 
 def pytest_xdist_auto_num_workers(config) -> int:
     """``-n auto``: the cores this process may run on (not the machine's), at most ``MAX_WORKERS``."""
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-    return max(1, min(cores, MAX_WORKERS))
+    from ambiegen_ros.experiment.runner import default_jobs  # the experiment harness's own count
+
+    return max(1, min(default_jobs(), MAX_WORKERS))
 
 
 _used_here: set[int] = set()  # ids this process has had: a DDS domain keeps its settings in-process
