@@ -468,9 +468,13 @@ def test_a_pass_after_nav2s_recoveries_is_a_near_miss(jazzy, workspace, graph, m
 
 def test_a_goal_nav2_refuses_at_once_goes_once_more(jazzy, workspace, graph, monkeypatch, ros_domain):
     """Nav2 refusing its goal before the robot could move (a startup race, not a verdict): the
-    adapter sends it once more, and the run is judged on the second; the first answer is kept."""
+    adapter sends it once more when the world's clock has run a simulated second (sent again at
+    once, a real MPPI refused it again 0.1 s later), and the run is judged on the second; the first
+    answer is kept."""
     g = fake_nav2_graph(jazzy, workspace, graph, monkeypatch, ros_domain, "refuse-first", early_verdicts=True)
     res = drive_easy_map(g, "refuse")
     assert not res.failed and res.failure_kind == "none", res.detail
     assert "error 103" in res.metrics["nav2_first_abort"] and "0 poses" in res.metrics["nav2_first_abort"]
     assert "goal refused" in g.log("fake_nav2") and g.log("fake_nav2").count("goal ") == 2, g.log("fake_nav2")
+    # no odometry before the fake forwards a goal: the ROS clock (external_sim's /clock) decided
+    assert float(res.metrics["nav2_resend_wait_s"]) >= 1.0, res.metrics
