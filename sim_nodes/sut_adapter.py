@@ -157,9 +157,13 @@ class Job:
     next_element: int = 0
     start_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
     nav2_first_abort: str = ""  # Nav2 refused the first goal at once: what it said (the goal went again)
-    nav2_resend_due: bool = False  # ... and the goal goes again once the world's clock passes NAV2_NOT_READY_S
     nav2_refused_ns: int = 0  # the node's ROS time (sim time under /clock) of that refusal
     nav2_resend_wait_s: float | None = None  # ROS-clock s from that refusal to the goal's going again
+
+    @property
+    def nav2_resend_due(self) -> bool:
+        """Nav2 refused the first goal and it has not gone again yet."""
+        return bool(self.nav2_first_abort) and self.nav2_resend_wait_s is None
 
 
 class SutAdapter:
@@ -510,10 +514,9 @@ class SutAdapter:
             r = None  # the refusal on record is not the verdict
             # the world's clock has run on, in the robot's odometry or in ROS time (a stack whose
             # odometry starts with the goal): an event of the simulation, not a wall-clock wait
-            if job.judge.elapsed >= NAV2_NOT_READY_S or \
-                    self.node.now_ns() - job.nav2_refused_ns >= NAV2_NOT_READY_S * 1e9:
-                job.nav2_resend_due = False
-                job.nav2_resend_wait_s = (self.node.now_ns() - job.nav2_refused_ns) / 1e9
+            waited_s = (self.node.now_ns() - job.nav2_refused_ns) / 1e9
+            if job.judge.elapsed >= NAV2_NOT_READY_S or waited_s >= NAV2_NOT_READY_S:
+                job.nav2_resend_wait_s = waited_s
                 self._send_goal(job)
         elif r is not None and r["status"] != "succeeded" and not job.nav2_first_abort and \
                 job.judge.elapsed < NAV2_NOT_READY_S:
@@ -522,7 +525,7 @@ class SutAdapter:
             # the world's clock has run NAV2_NOT_READY_S simulated seconds: sent again at once, the
             # goal met the same stale view 0.1 s later (docs/choices.md). A real failure repeats and
             # is the verdict (the first answer is recorded)
-            job.nav2_first_abort, job.nav2_resend_due = nav2_answer(r, job.judge.elapsed), True
+            job.nav2_first_abort = nav2_answer(r, job.judge.elapsed)
             job.nav2_refused_ns = self.node.now_ns()
             self.node.logger.warning(f"Nav2 {job.nav2_first_abort} at the start; sending the goal once more "
                                      f"when the world's clock has run {NAV2_NOT_READY_S:g} s")
