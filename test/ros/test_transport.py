@@ -637,6 +637,27 @@ def test_in_process_pubsub_raw_and_bad_payload(dds_env, ros_domain):
         node.create_publisher("std_msgs/msg/Nope", "/n", DEFAULT)
 
 
+def test_a_later_node_gets_its_larger_sample_limit_on_a_domain_an_earlier_node_set_up(dds_env, ros_domain, capfd):
+    """A Cyclone domain outlives its nodes in a process. A node with a larger ``max_message_bytes``
+    than the node that set the domain up gets the domain made again (a 6 MB map goes through, where
+    the old 4 MiB limit made the write fail); while a node still holds the domain, it says so."""
+    import numpy as np
+    dds_env(ros_domain, "first").shutdown()  # the default limit, 4 MiB
+    big = dds_env(ros_domain, "big", parameter_overrides={"max_message_bytes": 12_000_000})
+    got = []
+    pub = big.create_publisher(GRID, "/big_map", LATCHED)
+    big.create_subscription(GRID, "/big_map", lambda m: got.append(len(m.data)), LATCHED)
+    assert big.wait_for_subscribers(pub, 1, PATIENCE)
+    side = 2500  # 6.25 MB of cells
+    grid = big.new_message(GRID, data=np.zeros(side * side, dtype=np.int8))
+    grid.info.width = grid.info.height = side
+    pub.publish(grid)
+    assert big.spin_until(lambda: got, PATIENCE) and got == [side * side]
+    dds_env(ros_domain, "bigger", parameter_overrides={"max_message_bytes": 50_000_000})  # "big" is live
+    err = capfd.readouterr().err
+    assert f"max_message_bytes 50000000 cannot apply: a live node of this process holds DDS domain {ros_domain}" in err
+
+
 def test_keep_all_reader_buffers_what_a_keep_last_reader_loses(dds_env, ros_domain):
     """A reader that does not take for a while (a judge loading its kernels): keep-last 100 keeps
     the newest 100 samples, keep-all keeps every one (the SUT adapter's sample subscription)."""

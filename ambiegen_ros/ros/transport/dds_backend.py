@@ -73,6 +73,7 @@ def unavailable_reason() -> str:
 # process-wide state: configured domains, signal handling
 
 _domains: dict[int, Any] = {}
+_domain_sample_limits: dict[int, int | None] = {}  # the MaxSampleSize each domain was made with
 _domains_lock = threading.Lock()
 _live_nodes: "weakref.WeakSet[DdsNode]" = weakref.WeakSet()
 
@@ -132,21 +133,32 @@ def domain_id_from_env() -> int:
     return did
 
 
-def _ensure_domain(domain_id: int, max_sample_bytes: int | None = None) -> None:
+def _ensure_domain(domain_id: int, max_sample_bytes: int | None = None) -> int | None:
+    """Set up this process's Cyclone domain; returns the largest sample it carries (None: Cyclone's
+    default). A domain outlives its nodes: a node that needs a larger limit than an earlier one set
+    gets the domain made again, unless a live node of this process is still on it."""
     with _domains_lock:
         if domain_id in _domains:
-            return
+            carried = _domain_sample_limits[domain_id]
+            in_use = any(n._domain_id == domain_id and not n._closed for n in list(_live_nodes))
+            if carried is None or not max_sample_bytes or max_sample_bytes <= carried or in_use:
+                return carried
+            old = _domains.pop(domain_id)
+            if old is not None:
+                old.__del__()  # dds_delete: no participant of this process is left on it
         cfg = domain_config()
         if max_sample_bytes:
             # Cyclone drops larger samples before reassembling them (logged, never buffered); +4
             # for the CDR padding, so the node's own limit (InputGuard) decides at the boundary.
-            # The first node of a process on a domain sets it (one node per process is the rule).
+            # One node per process is the rule; a later node may raise it once the others are gone.
             cfg = ",".join(filter(None, [cfg, '<CycloneDDS><Domain Id="any"><Internal><MaxSampleSize>'
                                          f"{int(max_sample_bytes) + 4}B</MaxSampleSize></Internal></Domain></CycloneDDS>"]))
         try:
             _domains[domain_id] = Domain(domain_id, cfg) if cfg else None
         except Exception as exc:
             raise TransportError(f"cannot create DDS domain {domain_id} from config {cfg!r}: {exc}") from exc
+        _domain_sample_limits[domain_id] = max_sample_bytes
+        return max_sample_bytes
 
 
 # ---------------------------------------------------------------------------------------------
@@ -276,7 +288,12 @@ class DdsNode(Node):
         self._registry = types.get_registry()
         self._mirror = _mirror_for(self._registry, types.dds_type_name)
         self._domain_id = domain_id_from_env()
-        _ensure_domain(self._domain_id, self.input_guard().max_bytes)
+        wanted = self.input_guard().max_bytes
+        carried = _ensure_domain(self._domain_id, wanted)
+        if wanted and carried is not None and wanted > carried:
+            self.logger.warning(f"max_message_bytes {wanted} cannot apply: a live node of this process holds DDS "
+                                f"domain {self._domain_id}, set up for samples up to {carried} bytes, and larger "
+                                "ones are dropped (one node per process, or the largest limit first)")
         self._dp = DomainParticipant(self._domain_id, qos=_DdsQos(Policy.Userdata(b"enclave=/;")))
         self._ws = WaitSet(self._dp)
         self._guard = GuardCondition(self._dp)
