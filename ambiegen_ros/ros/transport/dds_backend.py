@@ -72,8 +72,7 @@ def unavailable_reason() -> str:
 # ---------------------------------------------------------------------------------------------
 # process-wide state: configured domains, signal handling
 
-_domains: dict[int, Any] = {}
-_domain_sample_limits: dict[int, int | None] = {}  # the MaxSampleSize each domain was made with
+_domains: dict[int, tuple[Any, int | None]] = {}  # id -> (Cyclone domain, the sample limit it was made with)
 _domains_lock = threading.Lock()
 _live_nodes: "weakref.WeakSet[DdsNode]" = weakref.WeakSet()
 
@@ -139,11 +138,11 @@ def _ensure_domain(domain_id: int, max_sample_bytes: int | None = None) -> int |
     gets the domain made again, unless a live node of this process is still on it."""
     with _domains_lock:
         if domain_id in _domains:
-            carried = _domain_sample_limits[domain_id]
+            old, carried = _domains[domain_id]
             in_use = any(n._domain_id == domain_id and not n._closed for n in list(_live_nodes))
             if carried is None or not max_sample_bytes or max_sample_bytes <= carried or in_use:
                 return carried
-            old = _domains.pop(domain_id)
+            del _domains[domain_id]
             if old is not None:
                 old.__del__()  # dds_delete: no participant of this process is left on it
         cfg = domain_config()
@@ -154,10 +153,9 @@ def _ensure_domain(domain_id: int, max_sample_bytes: int | None = None) -> int |
             cfg = ",".join(filter(None, [cfg, '<CycloneDDS><Domain Id="any"><Internal><MaxSampleSize>'
                                          f"{int(max_sample_bytes) + 4}B</MaxSampleSize></Internal></Domain></CycloneDDS>"]))
         try:
-            _domains[domain_id] = Domain(domain_id, cfg) if cfg else None
+            _domains[domain_id] = (Domain(domain_id, cfg) if cfg else None), max_sample_bytes
         except Exception as exc:
             raise TransportError(f"cannot create DDS domain {domain_id} from config {cfg!r}: {exc}") from exc
-        _domain_sample_limits[domain_id] = max_sample_bytes
         return max_sample_bytes
 
 
