@@ -223,6 +223,10 @@ pytestmark_dds = pytest.mark.skipif(
 
 
 def start_pair(procs: Procs, problem: str, scale: float, **adapter) -> None:
+    """external_sim and the adapter. The adapter's wall-clock wait for the first sample is raised
+    from 10 s to 120 s: on a starved machine 10 s went by between a goal and its first odometry (an
+    error verdict from the clock, not from the system)."""
+    adapter.setdefault("start_timeout", 120.0)
     profile = PROFILE[problem]
     procs.start("external", "sim_nodes.external_sim", problem=problem, time_scale=scale, profile=profile)
     procs.start("adapter", "sim_nodes.sut_adapter", problem=problem, time_scale=scale, worker_id="sut",
