@@ -41,7 +41,7 @@ from ambiegen_ros.ros.qos import DEFAULT, LATCHED, STREAM, Qos
 from ambiegen_ros.ros.transport import create_node
 from ambiegen_ros.sims import car, robot
 from ambiegen_ros.sims.full_model import SIMULATORS
-from ambiegen_ros.sims.room import SteppedRoom
+from ambiegen_ros.sims.room import SteppedRoom, room_of
 from ambiegen_ros.nodes import run_node
 from sim_nodes.worker import load_problem, sim_options
 
@@ -192,13 +192,13 @@ class ExternalSim:
 
     def on_room_model(self, msg: Any) -> None:
         model = int(msg.data)
-        if 1 <= model <= len(self.problem.config.room_models):
+        if 1 <= model <= len(self.problem.config.room_conditions):
             self.room_model = model
         else:
-            self.node.logger.warning(f"room model {model} unknown (1..{len(self.problem.config.room_models)}); ignored")
+            self.node.logger.warning(f"room model {model} unknown (1..{len(self.problem.config.room_conditions)}); ignored")
 
     def _reset_room(self, temperature: float) -> None:
-        self.room = SteppedRoom(self.cfg, self.problem.config.room_models, temperature, self.seed)
+        self.room = SteppedRoom(self.cfg, room_of(self.problem), temperature, self.seed)
         self.room_started = False
         self.runs += 1
         self.node.logger.debug(f"room reset to {temperature:g} degC (run {self.runs})")

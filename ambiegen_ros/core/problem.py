@@ -84,6 +84,12 @@ class Problem(ABC):
     # reference. Empty: the paper's own setting is that search.
     certified_search: ClassVar[dict[str, Any]] = {}
 
+    @classmethod
+    def certified_settings(cls, sim_config: Any) -> dict[str, Any]:
+        """problem_config that makes the certified surrogate model the system the full model runs
+        with ``sim_config`` (its controller, say); added to ``certified_search``. Empty: nothing to copy."""
+        return {}
+
     def __init__(self, config: Any = None, **overrides: Any):
         # Config fields may default per profile (None resolved in __post_init__): build the config
         # from the values given, so that e.g. profile="refined" gets the refined defaults.

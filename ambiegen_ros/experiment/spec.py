@@ -99,7 +99,12 @@ def resolve(spec: ExperimentSpec) -> dict[str, Any]:
 
     spec.check()
     certified = spec.full_model and spec.search_for == "certified"
-    defaults = problem_class(spec.problem).certified_search if certified else None
+    defaults = None
+    if certified:  # the search hunts the failures of the system the executors run (--set options)
+        from ..sims.full_model import sim_config
+
+        case = problem_class(spec.problem)
+        defaults = {**case.certified_search, **case.certified_settings(sim_config(spec.problem, spec.sim_options))}
     settings: dict[str, Any] = {}
     problem = None
     file_cfg = load_config_file(spec.config_file)

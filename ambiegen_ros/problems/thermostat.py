@@ -35,10 +35,13 @@ minus that of an ideal controller on the same schedule, both with the surrogate'
 rewards) score near 0; ``alpha`` then defaults to 0.3 degC. It costs a second, finer simulation.
 
 ``objective="certified"`` (issue 26) scores what RQ3 counts: S and R are the RMSEs of the
-thermostat and of the ideal controller on the full model's room (``sims.room``: 60 s control
-period, 10 s sampling, no sensor noise; ``thermostat_model.simulate_room``), F1 = min(S, 2 req -
-R) and alpha = req, so F1 > alpha means "fails, and the reference passes"; ``certified_cap`` stops
-F1 at req + cap. The thermostat's reference has no static check, so validity is unchanged.
+thermostat and of the ideal controller on the full model's physical room (``sims.room``, issue
+46: the same room, controller, control period and 10 s sampling, no sensor noise;
+``thermostat_model.simulate_room``), F1 = min(S, 2 req - margin - R) and alpha = req, so F1 >
+alpha means "fails, and the reference passes by at least ``reference_margin``";
+``certified_cap`` stops F1 at req + cap. The system under test is ``controller`` with its
+settings (``certified_settings`` copies them from the simulator's options). The thermostat's
+reference has no static check, so validity is unchanged.
 
 Other choices: schedules shorter than 24 h are simulated over their own length; invalid schedules
 get F1 = 0 and zero metrics except ``duration_min``; ``environment`` still simulates them and says
@@ -58,6 +61,7 @@ from ..core.scenario import Scenario
 from .thermostat_model import (DUR, DURATION, MODEL, REPLICATION_DURATION, ROOM_MODEL, ROOM_MODELS, SCALAR_BATCH,
                                TEMP, TEMPERATURE, BatchRun, ThermostatConfig, compiled_loaded, ideal_config,
                                schedule_steps, simulate_batch, simulate_room, simulate_rows, simulate_schedule)
+from .thermostat_room import worst_excess
 
 
 # --- the environment ("TC to environment") -------------------------------------------------------
@@ -112,10 +116,26 @@ class ThermostatProblem(Problem):
         if self.config.objective == "reference_relative":
             self.f1_label = "RMSE above an ideal controller's [degC]"
         elif self.config.objective == "certified":
-            self.f1_label = "min(RMSE, 2 x requirement - ideal controller's RMSE) [degC]"
-        n_models = len(self.config.room_models)
-        if n_models < self.attributes[MODEL].high:
-            raise ScenarioError("config.room_models", f"{n_models} rows", f"{self.attributes[MODEL].high} rows")
+            self.f1_label = "min(RMSE, 2 x requirement - margin - ideal controller's RMSE) [degC]"
+        for name in ("room_models", "room_conditions"):
+            n_models = len(getattr(self.config, name))
+            if n_models < self.attributes[MODEL].high:
+                raise ScenarioError(f"config.{name}", f"{n_models} rows", f"{self.attributes[MODEL].high} rows")
+
+    @classmethod
+    def certified_settings(cls, sim_config: Any) -> dict[str, Any]:
+        """The certified surrogate's copy of the system under test the full model runs
+        (``sims.room.RoomSimConfig``), so that the search hunts the failures of what is executed."""
+        if sim_config.controller == "ideal":
+            raise ScenarioError("option.controller", "the ideal controller is the reference, not a system under test",
+                                "onoff|pid")
+        return {"controller": sim_config.controller, "control_seconds": sim_config.control_period,
+                "sample_seconds": sim_config.dt, "hysteresis": sim_config.hysteresis, "kp": sim_config.kp,
+                "ki": sim_config.ki, "kd": sim_config.kd, "pwm_seconds": sim_config.pwm_period,
+                "anti_windup": sim_config.anti_windup, "sensor_resolution": sim_config.sensor_resolution,
+                "sensor_noise": sim_config.sensor_noise,
+                "requirement_rmse": sim_config.requirement_rmse,
+                "reference_margin": sim_config.reference_margin}
 
     def layout(self):
         if self.config.replication:
@@ -281,10 +301,11 @@ class ThermostatProblem(Problem):
         return Evaluation(f1=f1, valid=valid, reasons=reasons, metrics=metrics)
 
     def _certified(self, G, scored, rows, valid, reasons, total) -> Evaluation:
-        """F1 of ``objective="certified"`` (issue 26): ``min(S, 2 req - R)``, clipped at 0, where S is
-        the thermostat's RMSE and R the ideal controller's, both on the full model's room, control
-        period and sampling (``simulate_room``, no sensor noise). F1 - req is the smaller of the two
-        margins a certified failure needs (S above the requirement, R below it), so F1 > alpha = req
+        """F1 of ``objective="certified"`` (issue 26): ``min(S, 2 req - margin - R)``, clipped at 0,
+        where S is the thermostat's RMSE and R the ideal controller's, both on the full model's room,
+        controller and sampling (``simulate_room``, no sensor noise). F1 - req is the smaller of the
+        two margins a certified failure needs (S above the requirement, R below it by at least
+        ``reference_margin``), so F1 > alpha = req
         says "the full model fails and its reference passes", and the search is pushed away from
         schedules the reference fails too (where the RMSE objective climbs: invalid tests). With
         ``certified_cap``, F1 stops at req + cap: past a clear margin, one failure is as good as
@@ -293,10 +314,12 @@ class ThermostatProblem(Problem):
         P = len(G)
         S, R, max_error, hour = np.zeros(P), np.zeros(P), np.zeros(P), np.full(P, np.nan)
         if len(rows):
-            S[rows], max_error[rows], hour[rows] = simulate_room(G[rows], scored[rows], self.config)
-            R[rows] = simulate_room(G[rows], scored[rows], self.config, ideal=True)[0]
+            S[rows], max_error[rows], _, sut = simulate_room(G[rows], scored[rows], self.config)
+            R[rows], _, _, ideal = simulate_room(G[rows], scored[rows], self.config, ideal=True)
+            used = np.arange(G.shape[1])[None, :] < scored[rows][:, None]
+            hour[rows] = worst_excess(sut, ideal, np.where(used, G[rows, :, DUR], 0.0))[1]
         req = float(self.config.requirement_rmse)
-        f1 = np.maximum(np.minimum(S, 2.0 * req - R), 0.0)
+        f1 = np.maximum(np.minimum(S, 2.0 * req - float(self.config.reference_margin) - R), 0.0)
         if self.config.certified_cap is not None:  # every clear failure alike: diversity decides among them
             f1 = np.minimum(f1, req + float(self.config.certified_cap))
         f1 = np.where(valid, f1, 0.0)

@@ -26,6 +26,8 @@ import numpy as np
 
 from ..core.attributes import IntRange, ScenarioError
 from ..core.problem import check_profile
+from .thermostat_room import (CLAMP, CONDITIONAL, MAXABS, ONOFF, PID, ROOM_CONDITIONS, ROOM_CONSTRUCTION, SUMSQ, WORST,
+                              check_room, envelope_at_rest, new_state, run_rows, step_tables)
 
 # (k_on1, k_on2, k_off1, k_off2) per room model 1..7 (the paper prints three; the rest come from
 # the replication data, see the project spec).
@@ -73,8 +75,18 @@ class ThermostatConfig:
     # objective "certified" only (issue 26): the full model's room, controller period and sampling
     control_seconds: float = 60.0  # the thermostat decides this often (sims.room's control_period)
     sample_seconds: float = 10.0  # integration / error-sampling step; the ideal decides every step (sims.room's dt)
-    model_step_seconds: float = 180.0  # the step the room curves were fitted on (sims.room's model_step)
+    room_construction: tuple = ROOM_CONSTRUCTION  # the full model's room: heater W, C_air J/K, C_envelope J/K, H_air_envelope W/K
+    room_conditions: tuple = ROOM_CONDITIONS  # per room model: ambient degC, H_air_out W/K, H_envelope_out W/K
+    controller: str = "onoff"  # certified: the system under test as sims.room runs it: onoff | pid
+    kp: float = 1.0  # certified, pid: sims.room's gains, duty-cycle period and anti-windup
+    ki: float = 0.0005
+    kd: float = 0.0
+    pwm_seconds: float = 180.0
+    anti_windup: str = "clamp"
+    sensor_resolution: float = 0.1  # certified: the thermostat's sensor steps [degC] (sims.room's)
+    sensor_noise: float = 0.05  # certified: its noise [degC]; the surrogate reads sims.room's noise stream of seed 0
     certified_cap: float | None = None  # F1 stops rising this far above the requirement [degC]; None: no cap
+    reference_margin: float = 0.1  # certified: the ideal controller must pass by this much (sims.room's reference_margin)
 
     def __post_init__(self):
         check_profile(self.profile)
@@ -100,11 +112,26 @@ class ThermostatConfig:
         if self.objective == "reference_relative" and (ratio < 1 or abs(ratio - round(ratio)) > 1e-9):
             raise ScenarioError("config.reference_step_minutes", "must divide step_minutes",
                                 f"{self.step_minutes:g} / k for k = 1, 2, ...")
+        try:
+            cons, conds = check_room(self.room_construction, self.room_conditions)
+        except ValueError as exc:
+            field, _, why = str(exc).partition(": ")
+            raise ScenarioError(f"config.{field}", why) from None
+        object.__setattr__(self, "room_construction", cons)
+        object.__setattr__(self, "room_conditions", conds)
+        if self.controller not in ("onoff", "pid"):
+            raise ScenarioError("config.controller", f"unknown controller {self.controller!r}", "onoff|pid")
+        if self.anti_windup not in ("clamp", "conditional"):
+            raise ScenarioError("config.anti_windup", f"unknown {self.anti_windup!r}", "clamp|conditional")
         every = self.control_seconds / self.sample_seconds if self.sample_seconds > 0 else 0.0
-        if self.objective == "certified" and (every < 1 or abs(every - round(every)) > 1e-9
-                                              or self.model_step_seconds <= 0):
+        if self.objective == "certified" and (every < 1 or abs(every - round(every)) > 1e-9):
             raise ScenarioError("config.control_seconds", "must be a multiple of sample_seconds (both > 0)",
                                 f"k * {self.sample_seconds:g} s for k = 1, 2, ...")
+        if not 0.0 <= self.reference_margin < self.requirement_rmse:
+            raise ScenarioError("config.reference_margin", "must be >= 0 and below requirement_rmse")
+        for name in ("sensor_resolution", "sensor_noise"):
+            if getattr(self, name) < 0:
+                raise ScenarioError(f"config.{name}", "must be >= 0")
         if self.certified_cap is not None and not self.certified_cap > 0:
             raise ScenarioError("config.certified_cap", "must be > 0 (or null: no cap)")
         if not 0.0 <= self.p_stay <= 1.0:
@@ -389,85 +416,49 @@ def simulate_rows(G: np.ndarray, lengths: np.ndarray, config: ThermostatConfig) 
     return np.sqrt(sumsq / np.maximum(n_steps, 1)), maxabs
 
 
-def _room_rows(count, goal, model, T_init, k_on1, decay_on, k_off1, decay_off, every, h, sumsq, maxabs, worst):
-    """``sims.room.heat`` without noise or quantisation, every schedule of a batch (numba when
-    available): the room relaxes towards ``anchor +- k1`` (anchor = temperature at the last switch;
-    not reset at element boundaries), the controller decides every ``every`` steps of the global
-    clock, and the error is sampled after each step. ``count[p, j]`` = steps of element j;
-    ``worst[p]`` = the step after which the error was largest (first of equals, as sims.room)."""
-    for p in range(count.shape[0]):
-        T = T_init[p]
-        on = True
-        anchor = T
-        k = 0
-        acc = 0.0
-        top = 0.0
-        at = 0
-        for j in range(count.shape[1]):
-            c = count[p, j]
-            if c == 0:
-                continue
-            g = goal[p, j]
-            m = model[p, j]
-            up = g + h
-            lo = g - h
-            for _ in range(c):
-                if k % every == 0:
-                    if on and T >= up:
-                        on = False
-                        anchor = T
-                    elif (not on) and T < lo:
-                        on = True
-                        anchor = T
-                if on:
-                    level = anchor + k_on1[m]
-                    T = level + (T - level) * decay_on[m]
-                else:
-                    level = anchor - k_off1[m]
-                    T = level + (T - level) * decay_off[m]
-                e = abs(T - g)
-                if e > top:
-                    top = e
-                    at = k
-                acc += e * e
-                k += 1
-        sumsq[p] = acc
-        maxabs[p] = top
-        worst[p] = at
-
-
-_ROOM_KERNEL: Any = None  # compiled ``_room_rows``, or False without numba
+@lru_cache(maxsize=4)
+def seed0_noise(sigma: float, steps: int) -> np.ndarray | None:
+    """The sensor noise ``sims.room.heat`` draws for noise seed 0 (its first ``steps`` values), as
+    one row every schedule reads: the surrogate is then the full model run with seed 0."""
+    if sigma <= 0 or steps <= 0:
+        return None
+    noise = np.random.default_rng(0).normal(0.0, sigma, steps + 1)[None, :steps]
+    noise.setflags(write=False)
+    return noise
 
 
 def simulate_room(G: np.ndarray, lengths: np.ndarray, config: ThermostatConfig, ideal: bool = False,
-                  engine: str | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """RMSE, max |error| and the hour of the largest error (``Outcome.failure_point[0]``'s) of each schedule on the full model's room (``sims.room.heat``'s
-    dynamics, sampling and controller period, no sensor noise): the ``certified`` objective's
-    surrogate, so that its F1 ranks schedules as the full model and its reference do. ``ideal``:
-    the reference controller (no hysteresis, deciding every sample step). Elements must last whole
-    sample steps (durations are multiples of 15 min)."""
-    global _ROOM_KERNEL
+                  engine: str | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """RMSE, max |error|, the hour of the largest error and each element's sum of squared errors of each
+    schedule on the full model's room (``sims.room.heat``: the same physical room, loop, controller,
+    sensor and sampling, with the noise of seed 0): the ``certified`` objective's surrogate, so
+    that its F1 ranks schedules as the full model and its reference do. ``ideal``: the reference
+    controller (no hysteresis, deciding every sample step). Elements must last whole sample steps
+    (durations are multiples of 15 min)."""
     G = np.asarray(G, dtype=float)
     lengths = np.asarray(lengths, dtype=int)
     dt = float(config.sample_seconds)
-    every = 1 if ideal else int(round(config.control_seconds / dt))
-    h = 0.0 if ideal else float(config.hysteresis)
     used = np.arange(G.shape[1])[None, :] < lengths[:, None]
     count = np.where(used, np.rint(G[:, :, DUR] * 60.0 / dt), 0).astype(np.int64)
-    k = np.asarray(config.room_models, dtype=float)
-    rate = dt / float(config.model_step_seconds)
-    args = (count, np.ascontiguousarray(G[:, :, TEMP]), np.where(used, G[:, :, MODEL] - 1, 0).astype(np.int64),
-            G[:, 0, TEMP].copy(), k[:, 0].copy(), np.exp(-k[:, 1] * rate), k[:, 2].copy(), np.exp(-k[:, 3] * rate),
-            every, h)
-    P = len(G)
-    sumsq, maxabs, worst = np.zeros(P), np.zeros(P), np.zeros(P, dtype=np.int64)
-    if _ROOM_KERNEL is None and (engine or config.engine) != "numpy":
-        from ..core.accel import jit
-
-        _ROOM_KERNEL = jit(_room_rows) or False
-    kernel = _ROOM_KERNEL if (_ROOM_KERNEL and (engine or config.engine) != "numpy") else _room_rows
-    kernel(*args, sumsq, maxabs, worst)
-    return np.sqrt(sumsq / np.maximum(count.sum(axis=1), 1)), maxabs, (worst + 1) * dt / 3600.0
+    model = np.where(used, G[:, :, MODEL] - 1, 0).astype(np.int64)
+    cons, conds = config.room_construction, config.room_conditions
+    air = G[:, 0, TEMP].copy()
+    env = np.array([envelope_at_rest(cons, conds[m], a) for m, a in zip(model[:, 0].tolist(), air.tolist())])
+    state = new_state(len(G), air, env)
+    if ideal:
+        controller = (ONOFF, 1, 0.0, 0.0, 0.0, 0.0, 1, CLAMP, dt)
+    else:
+        kind = PID if config.controller == "pid" else ONOFF
+        controller = (kind, int(round(config.control_seconds / dt)), float(config.hysteresis), config.kp, config.ki,
+                      config.kd, int(round(config.pwm_seconds / dt)),
+                      CONDITIONAL if config.anti_windup == "conditional" else CLAMP, float(config.control_seconds))
+    noise = None if ideal else seed0_noise(float(config.sensor_noise), int(count.sum(axis=1).max(initial=0)))
+    elements = np.zeros((len(G), max(G.shape[1], 2)))
+    run_rows(state, count, np.ascontiguousarray(G[:, :, TEMP]), model, step_tables(cons, conds, dt), controller,
+             noise=noise, q=0.0 if ideal else float(config.sensor_resolution), elements=elements,
+             compiled=(engine or config.engine) != "numpy")
+    return (np.sqrt(state[:, SUMSQ] / np.maximum(count.sum(axis=1), 1)), state[:, MAXABS],
+            (state[:, WORST] + 1) * dt / 3600.0, elements[:, :G.shape[1]])
 
 
 def schedule_steps(

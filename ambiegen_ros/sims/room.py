@@ -1,27 +1,26 @@
-"""Full-model thermostat: a room with a heater, a noisy quantised sensor and a controller.
+"""Full-model thermostat: a physical room with a heater, a noisy quantised sensor and a controller.
 
-Independent of the surrogate (which evaluates the fitted curves in closed form every 3 minutes),
-this integrates the room in continuous time with a fine step ``dt``:
-
-* *Room*: the scheduled room model read as a first-order system. Each heater phase relaxes the
-  temperature towards a level set at the last switch: ``T_sw + k_on1`` while heating, ``T_sw -
-  k_off1`` while cooling, at the rate ``k_on2`` / ``k_off2`` per ``model_step`` seconds (the
-  3-minute step the curves were fitted on). Integrated exactly over each ``dt``, this reproduces
-  the fitted curves whenever the controller acts on the 3-minute grid; a room-model change at an
-  element boundary changes the rate and level from then on (the state is the temperature only).
-* *Sensor*: the room temperature plus Gaussian noise (``sensor_noise``, from the run's seeded
+* *Room* (``problems.thermostat_room``, issue 46): two thermal masses, the air with its contents
+  and the envelope, losing heat to an ambient temperature; the 1.5 kW heater warms the air. The
+  room and heater are the same in every room model; a model (the environmental condition) sets
+  the ambient and the losses, fitted to the paper's seven pairs of ON / OFF curves. Integrated
+  exactly over each ``dt`` with the heater constant over the step. Heating never lowers the
+  temperature, at any later time, in any model.
+* *Sensor*: the air temperature plus Gaussian noise (``sensor_noise``, from the run's seeded
   generator), rounded to ``sensor_resolution`` (0.1 degC).
 * *Controller*, run every ``control_period`` seconds on the sensor reading:
-  ``onoff`` - the surrogate's hysteresis rule (heater starts ON; OFF once reading >= goal + h, ON
-  once reading < goal - h); ``pid`` - a PID on the error (goal - reading) whose output in [0, 1]
-  is a duty cycle over ``pwm_period``, realised in whole control ticks (anti-windup by clamping
-  the integral). With the default gains it does about as well as on/off (mean RMSE 0.59 vs 0.56
-  degC on sampled schedules): the fitted curves restart at every switch, which rewards long
-  phases. ``ideal`` - the reference (``sims.reference.thermostat``): full power while the true
+  ``onoff`` - hysteresis (heater starts ON; OFF once reading >= goal + h, ON once reading <
+  goal - h); ``pid`` - a PID on the error (goal - reading) whose output in [0, 1] is a duty cycle
+  over ``pwm_period``, realised in whole control ticks; ``anti_windup``: ``clamp`` limits the
+  integral term to the output range (it can still hold full output after a long saturation),
+  ``conditional`` stops integrating while the output is saturated in the error's direction.
+  ``ideal`` - the reference (``sims.reference.thermostat``): full power while the true
   temperature is below the goal, off at or above it, decided every ``dt``; no noise, no
   quantisation, no hysteresis (``ideal_config``: the on/off rule with those settings).
 
-Oracle: the RMSE between the true room temperature and the scheduled goal, sampled after every
+The room starts at rest: the air at the first goal, the envelope in balance with it.
+
+Oracle: the RMSE between the true air temperature and the scheduled goal, sampled after every
 ``dt`` over the whole schedule, must not exceed ``requirement_rmse`` (1 degC, the paper's
 requirement); above it the run fails with kind ``requirement``. Metrics: rmse, max error, time
 above/below the goal band, heater duty, switch count.
@@ -35,9 +34,11 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..core.attributes import ScenarioError
+from ..problems import thermostat_room as physics
 from .outcome import Outcome
 
 CONTROLLERS = ("onoff", "pid", "ideal")
+ANTI_WINDUP = ("clamp", "conditional")
 
 
 @dataclass(frozen=True)
@@ -45,17 +46,18 @@ class RoomSimConfig:
     """Every number of the full-model thermostat (defaults: the paper's requirement and hysteresis)."""
 
     dt: float = 10.0  # integration step [s]
-    model_step: float = 180.0  # the step the room curves were fitted on [s]
     sensor_noise: float = 0.05  # standard deviation [degC]; 0 = exact
     sensor_resolution: float = 0.1  # quantisation [degC]; 0 = none
     controller: str = "onoff"  # onoff | pid | ideal (the reference controller)
     control_period: float = 60.0  # controller runs this often [s] (a multiple of dt)
     hysteresis: float = 0.1  # on/off band half-width [degC]
-    kp: float = 1.0  # PID gains on degC error -> duty (tuned on sampled schedules)
+    kp: float = 1.0  # PID gains on degC error -> duty (a PI in the range SIMC tuning gives this room)
     ki: float = 0.0005  # [1/s]
     kd: float = 0.0  # [s]
     pwm_period: float = 180.0  # PID duty-cycle period [s]; the relay acts on control ticks
+    anti_windup: str = "clamp"  # PID: clamp (integral term within the output range) | conditional
     requirement_rmse: float = 1.0  # [degC]
+    reference_margin: float = 0.1  # a failure counts when the ideal controller passes by at least this [degC]
     band: float = 0.5  # metrics: time spent more than this above / below the goal [degC]
     run_invalid: bool = False  # also simulate schedules the problem calls invalid
     reference: bool = True  # check each scenario with the problem's reference; false = the old, unchecked verdicts
@@ -63,10 +65,12 @@ class RoomSimConfig:
     def __post_init__(self):
         if self.controller not in CONTROLLERS:
             raise ScenarioError("option.controller", f"unknown controller {self.controller!r}", "|".join(CONTROLLERS))
-        for name in ("dt", "model_step", "control_period", "pwm_period", "requirement_rmse"):
+        if self.anti_windup not in ANTI_WINDUP:
+            raise ScenarioError("option.anti_windup", f"unknown {self.anti_windup!r}", "|".join(ANTI_WINDUP))
+        for name in ("dt", "control_period", "pwm_period", "requirement_rmse"):
             if not getattr(self, name) > 0:
                 raise ScenarioError(f"option.{name}", "must be > 0")
-        for name in ("sensor_noise", "sensor_resolution", "hysteresis", "band"):
+        for name in ("sensor_noise", "sensor_resolution", "hysteresis", "band", "kp", "ki", "kd", "reference_margin"):
             if getattr(self, name) < 0:
                 raise ScenarioError(f"option.{name}", "must be >= 0")
         ratio = self.control_period / self.dt
@@ -74,6 +78,17 @@ class RoomSimConfig:
             raise ScenarioError("option.control_period", "must be a multiple of dt", f"k * {self.dt:g} s")
         if not isinstance(self.reference, bool):
             raise ScenarioError("option.reference", f"expected true or false, got {self.reference!r}", "true|false")
+        if self.reference_margin >= self.requirement_rmse:
+            raise ScenarioError("option.reference_margin", "must be below requirement_rmse", f"< {self.requirement_rmse:g}")
+
+    def controller_args(self) -> tuple:
+        """The controller as ``thermostat_room.run_rows`` takes it (the ideal one as on/off settings)."""
+        cfg = ideal_config(self) if self.controller == "ideal" else self
+        kind = physics.PID if cfg.controller == "pid" else physics.ONOFF
+        every = int(round(cfg.control_period / cfg.dt))
+        windup = physics.CONDITIONAL if cfg.anti_windup == "conditional" else physics.CLAMP
+        return (kind, every, cfg.hysteresis, cfg.kp, cfg.ki, cfg.kd, int(round(cfg.pwm_period / cfg.dt)), windup,
+                cfg.control_period)
 
 
 def ideal_config(config: RoomSimConfig) -> RoomSimConfig:
@@ -83,90 +98,59 @@ def ideal_config(config: RoomSimConfig) -> RoomSimConfig:
                    control_period=config.dt)
 
 
+def room_of(problem: Any) -> tuple[tuple, tuple]:
+    """The physical room a thermostat problem's config describes: (construction, conditions)."""
+    return problem.config.room_construction, problem.config.room_conditions
+
+
 def heat(setpoints: Sequence[float], durations_min: Sequence[float], models: Sequence[int],
-         room_models: Sequence[Sequence[float]], config: RoomSimConfig | None = None, seed: int = 0,
+         room: tuple[Sequence[float], Sequence[Sequence[float]]], config: RoomSimConfig | None = None, seed: int = 0,
          initial_temperature: float | None = None) -> dict[str, Any]:
-    """Run one schedule (goal, minutes, 1-based room model per element); returns the record."""
+    """Run one schedule (goal, minutes, 1-based room model per element) in ``room`` (construction,
+    conditions: ``room_of(problem)``); returns the record."""
     cfg = config or RoomSimConfig()
     if cfg.controller == "ideal":
         cfg = ideal_config(cfg)
+    construction, conditions = physics.check_room(*room)
     rng = np.random.default_rng(seed)
     dt = cfg.dt
+    steps = np.rint(np.asarray(durations_min, dtype=float) * 60.0 / dt).astype(np.int64)
+    n = int(steps.sum())
+    times = dt * np.arange(n + 1)
     ends = np.cumsum(np.asarray(durations_min, dtype=float) * 60.0)
     total = float(ends[-1]) if len(ends) else 0.0
-    n = int(round(total / dt))
-    times = dt * np.arange(n + 1)
-    element = np.minimum(np.searchsorted(ends, times, side="right"), len(ends) - 1)  # in effect at t
-    goal_at = np.asarray(setpoints, dtype=float)[element]
-    coef = np.asarray(room_models, dtype=float)[np.asarray(models, dtype=int) - 1][element]  # (n+1, 4)
+    element = np.minimum(np.searchsorted(ends, times, side="right"), max(len(ends) - 1, 0))
+    goal_at = np.asarray(setpoints, dtype=float)[element] if len(ends) else np.zeros(n + 1)
     noise = rng.normal(0.0, cfg.sensor_noise, n + 1) if cfg.sensor_noise > 0 else np.zeros(n + 1)
-    every = int(round(cfg.control_period / dt))
-    pwm_steps = max(1, int(round(cfg.pwm_period / dt)))
-    q = cfg.sensor_resolution
-
+    models0 = np.asarray(models, dtype=np.int64) - 1
     T = float(setpoints[0] if initial_temperature is None else initial_temperature)
-    temp = np.empty(n + 1)
-    meas = np.empty(n + 1)
-    heater = np.zeros(n + 1, dtype=bool)
-    temp[0] = T
-    on = True
-    level_anchor = T  # temperature at the last switch
-    switches = 0
-    integral, last_err, duty, pwm_start = 0.0, None, 1.0, 0
-    reading = T
-    for k in range(n + 1):
-        if k % every == 0:  # sense and decide on the state at time t_k
-            reading = T + noise[k]
-            if q > 0:
-                reading = round(reading / q) * q
-            goal = goal_at[k]
-            if cfg.controller == "onoff":
-                want = on
-                if on and reading >= goal + cfg.hysteresis:
-                    want = False
-                elif not on and reading < goal - cfg.hysteresis:
-                    want = True
-            else:
-                err = goal - reading
-                integral = min(max(integral + err * cfg.control_period, -1.0 / max(cfg.ki, 1e-12)),
-                               1.0 / max(cfg.ki, 1e-12))
-                deriv = 0.0 if last_err is None else (err - last_err) / cfg.control_period
-                last_err = err
-                if (k - pwm_start) % pwm_steps == 0 or k == 0:
-                    duty = min(max(cfg.kp * err + cfg.ki * integral + cfg.kd * deriv, 0.0), 1.0)
-                    pwm_start = k
-                want = (k - pwm_start) < duty * pwm_steps
-            if want != on:
-                on, level_anchor = want, T
-                switches += 1
-        meas[k] = reading
-        heater[k] = on
-        if k == n:
-            break
-        k_on1, k_on2, k_off1, k_off2 = coef[k]
-        if on:
-            level, rate = level_anchor + k_on1, k_on2 / cfg.model_step
-        else:
-            level, rate = level_anchor - k_off1, k_off2 / cfg.model_step
-        T = level + (T - level) * math.exp(-rate * dt)
-        temp[k + 1] = T
-    # Sample k (k >= 1) is the temperature at the end of step k, judged against that step's goal.
-    goal_step = goal_at[:-1]
-    err = temp[1:] - goal_step
-    rmse = float(math.sqrt(np.mean(err ** 2))) if n else 0.0
-    worst = int(np.argmax(np.abs(err))) if n else 0
+    envelope = physics.envelope_at_rest(construction, conditions[models0[0]], T) if len(models0) else T
+    state = physics.new_state(1, np.array([T]), np.array([envelope]))
+    rec = (np.empty((1, max(n, 2))), np.empty((1, max(n, 2))), np.empty((1, max(n, 2))))
+    elements = np.zeros((1, max(len(steps), 2)))
+    physics.run_rows(state, steps[None, :], np.asarray(setpoints, dtype=float)[None, :], models0[None, :],
+                     physics.step_tables(construction, conditions, float(dt)), cfg.controller_args(),
+                     noise=noise[None, :n] if n > 1 else noise[None, :1], q=cfg.sensor_resolution, record=rec,
+                     elements=elements, compiled=physics.compiled_loaded())
+    st = state[0]
+    temp = np.concatenate([[T], rec[0][0, :n]])
+    meas = np.concatenate([rec[1][0, :n], [st[physics.READING]]]) if n else np.array([T])
+    heater = np.concatenate([rec[2][0, :n], [st[physics.ON]]]) if n else np.array([1.0])
+    err = temp[1:] - goal_at[:-1]  # sample k (k >= 1): after step k, against that step's goal
+    rmse = math.sqrt(st[physics.SUMSQ] / n) if n else 0.0
+    worst = int(st[physics.WORST]) if n else 0
     return {
-        "rmse": rmse,
-        "max_error": float(np.abs(err).max()) if n else 0.0,
+        "rmse": float(rmse),
+        "max_error": float(st[physics.MAXABS]) if n else 0.0,
         "above_band_min": float((err > cfg.band).sum() * dt / 60.0),
         "below_band_min": float((err < -cfg.band).sum() * dt / 60.0),
-        "heater_duty": float(heater[:-1].mean()) if n else 0.0,
-        "switches": switches,
+        "heater_duty": float(st[physics.HEATED] / n) if n else 0.0,
+        "switches": int(st[physics.SWITCHES]),
         "duration_min": total / 60.0,
         "worst_time_s": float(times[worst + 1]) if n else 0.0,
         "worst_temperature": float(temp[worst + 1]) if n else T,
-        "timeline": {"t": times, "temperature": temp, "measured": meas, "setpoint": goal_at,
-                     "heater": heater.astype(float)},
+        "element_sumsq": elements[0, :len(steps)],
+        "timeline": {"t": times, "temperature": temp, "measured": meas, "setpoint": goal_at, "heater": heater},
     }
 
 
@@ -179,18 +163,27 @@ def schedule_of(problem: Any, scenario: Any) -> tuple[list[float], list[float], 
 
 
 def simulate(problem: Any, scenario: Any, config: RoomSimConfig | None = None, seed: int = 0) -> Outcome:
-    """Execute one day schedule on the full-model room and judge it against the RMSE requirement."""
+    """Execute one day schedule on the full-model room and judge it against the RMSE requirement.
+
+    A failure is placed where the thermostat loses most to the ideal controller (the element with
+    the largest excess of squared error, and in it the moment of the largest excess error): the
+    largest error itself mostly sits on a set-point jump that no controller follows."""
     cfg = config or RoomSimConfig()
     setpoints, durations, models = schedule_of(problem, scenario)
-    run = heat(setpoints, durations, models, problem.config.room_models, cfg, seed=seed)
+    run = heat(setpoints, durations, models, room_of(problem), cfg, seed=seed)
     failed = run["rmse"] > cfg.requirement_rmse
     outcome = "requirement" if failed else "success"
     metrics = {k: run[k] for k in ("rmse", "max_error", "above_band_min", "below_band_min", "heater_duty",
                                    "switches", "duration_min")}
     metrics = {"outcome": outcome, "time": run["duration_min"] * 60.0, **metrics,
                "controller": cfg.controller, "seed": int(seed)}
-    detail = (f"RMSE {run['rmse']:.2f} degC {'>' if failed else '<='} {cfg.requirement_rmse:g} degC "
-              f"(worst {run['max_error']:.2f} degC at {run['worst_time_s'] / 3600:.2f} h)")
+    detail = f"RMSE {run['rmse']:.2f} degC {'>' if failed else '<='} {cfg.requirement_rmse:g} degC"
+    point = None
+    if failed:
+        point, where = _worst_excess(setpoints, durations, models, room_of(problem), cfg, run)
+        detail += f" ({where})"
+    else:
+        detail += f" (worst {run['max_error']:.2f} degC at {run['worst_time_s'] / 3600:.2f} h)"
     return Outcome(
         objectives={"thermostat_rmse": run["rmse"]},
         failed=failed,
@@ -199,68 +192,63 @@ def simulate(problem: Any, scenario: Any, config: RoomSimConfig | None = None, s
         metrics=metrics,
         trajectory=None,
         timeline=run["timeline"],
-        failure_point=(run["worst_time_s"] / 3600.0, run["worst_temperature"]) if failed else None,
+        failure_point=point,
     )
 
 
-__all__ = ["RoomSimConfig", "heat", "ideal_config", "schedule_of", "simulate"]
+def _worst_excess(setpoints, durations, models, room: tuple, cfg: RoomSimConfig, run: dict) -> tuple[tuple, str]:
+    """(failure point (hour, temperature), words) where the thermostat loses most to the ideal controller."""
+    ideal = heat(setpoints, durations, models, room, ideal_config(cfg))
+    dur = np.asarray(durations, dtype=float)
+    j = int(physics.worst_excess(run["element_sumsq"][None, :], ideal["element_sumsq"][None, :], dur[None, :])[0][0])
+    tl, ti = run["timeline"], ideal["timeline"]
+    start, end = float(dur[:j].sum() * 60.0), float(dur[:j + 1].sum() * 60.0)
+    inside = np.flatnonzero((tl["t"] > start) & (tl["t"] <= end + 1e-9))
+    goal = tl["setpoint"][inside - 1]
+    excess = np.abs(tl["temperature"][inside] - goal) - np.abs(ti["temperature"][inside] - goal)
+    k = int(inside[np.argmax(excess)]) if len(inside) else 0
+    steps = max(len(inside), 1)
+    rms = lambda e: math.sqrt(float(e) / steps)  # noqa: E731
+    words = (f"the ideal controller {ideal['rmse']:.2f} degC; the thermostat loses most in "
+             f"{start / 3600:.1f}-{end / 3600:.1f} h, goal {setpoints[j]:g} degC in room model {models[j]}: "
+             f"RMSE {rms(run['element_sumsq'][j]):.2f} against {rms(ideal['element_sumsq'][j]):.2f} degC")
+    return (float(tl["t"][k]) / 3600.0, float(tl["temperature"][k])), words
 
 
 class SteppedRoom:
-    """``sims.room.heat`` advanced one ``dt`` at a time, the set point and room model read at each
-    step (so they can change live); same controller, noise stream and integration."""
+    """``heat`` advanced one ``dt`` at a time, the set point and room model read at each step (so
+    they can change live); the same loop, noise stream and integration."""
 
-    def __init__(self, config: RoomSimConfig, room_models, initial_temperature: float, seed: int = 0):
+    def __init__(self, config: RoomSimConfig, room: tuple, initial_temperature: float, seed: int = 0):
         self.cfg = ideal_config(config) if config.controller == "ideal" else config
-        self.models = np.asarray(room_models, dtype=float)
+        self.construction, self.conditions = physics.check_room(*room)
+        self.tables = physics.step_tables(self.construction, self.conditions, float(self.cfg.dt))
+        self.controller = self.cfg.controller_args()
         self.rng = np.random.default_rng(seed)
-        self.every = int(round(self.cfg.control_period / self.cfg.dt))
-        self.pwm_steps = max(1, int(round(self.cfg.pwm_period / self.cfg.dt)))
+        self.state: np.ndarray | None = None
         self.T = float(initial_temperature)
-        self.k = 0
-        self.on = True
-        self.anchor = self.T  # temperature at the last switch
-        self.switches = 0
-        self.integral, self.last_err, self.duty, self.pwm_start = 0.0, None, 1.0, 0
-        self.reading = self.T
+        self._noise = np.zeros((1, 1))
 
     @property
     def t(self) -> float:
         return self.k * self.cfg.dt
 
+    @property
+    def k(self) -> int:
+        return 0 if self.state is None else int(self.state[0, physics.STEP])
+
     def step(self, goal: float, model: int) -> float:
         """Sense and decide at t_k with ``goal`` and ``model`` in effect, integrate to t_k+1."""
-        cfg, k = self.cfg, self.k
-        noise = self.rng.normal(0.0, cfg.sensor_noise) if cfg.sensor_noise > 0 else 0.0
-        if k % self.every == 0:
-            reading = self.T + noise
-            if cfg.sensor_resolution > 0:
-                reading = round(reading / cfg.sensor_resolution) * cfg.sensor_resolution
-            self.reading = reading
-            if cfg.controller == "onoff":
-                want = self.on
-                if self.on and reading >= goal + cfg.hysteresis:
-                    want = False
-                elif not self.on and reading < goal - cfg.hysteresis:
-                    want = True
-            else:
-                err = goal - reading
-                bound = 1.0 / max(cfg.ki, 1e-12)
-                self.integral = min(max(self.integral + err * cfg.control_period, -bound), bound)
-                deriv = 0.0 if self.last_err is None else (err - self.last_err) / cfg.control_period
-                self.last_err = err
-                if (k - self.pwm_start) % self.pwm_steps == 0 or k == 0:
-                    self.duty = min(max(cfg.kp * err + cfg.ki * self.integral + cfg.kd * deriv, 0.0), 1.0)
-                    self.pwm_start = k
-                want = (k - self.pwm_start) < self.duty * self.pwm_steps
-            if want != self.on:
-                self.on, self.anchor = want, self.T
-                self.switches += 1
-        k_on1, k_on2, k_off1, k_off2 = self.models[int(model) - 1]
-        if self.on:
-            level, rate = self.anchor + k_on1, k_on2 / cfg.model_step
-        else:
-            level, rate = self.anchor - k_off1, k_off2 / cfg.model_step
-        self.T = level + (self.T - level) * math.exp(-rate * cfg.dt)
-        self.k += 1
+        m = int(model) - 1
+        if self.state is None:  # at rest in the first model in effect
+            env = physics.envelope_at_rest(self.construction, self.conditions[m], self.T)
+            self.state = physics.new_state(1, np.array([self.T]), np.array([env]))
+        self._noise[0, 0] = self.rng.normal(0.0, self.cfg.sensor_noise) if self.cfg.sensor_noise > 0 else 0.0
+        physics.run_rows(self.state, np.ones((1, 1), dtype=np.int64), np.array([[float(goal)]]),
+                         np.array([[m]], dtype=np.int64), self.tables, self.controller, noise=self._noise,
+                         q=self.cfg.sensor_resolution, compiled=physics.compiled_loaded())
+        self.T = float(self.state[0, physics.TA])
         return self.T
+
+
+__all__ = ["RoomSimConfig", "SteppedRoom", "heat", "ideal_config", "room_of", "schedule_of", "simulate"]

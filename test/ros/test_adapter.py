@@ -185,9 +185,9 @@ def test_stepped_room_is_heat_one_step_at_a_time(problems):
         cfg = room.RoomSimConfig(controller=controller)
         for row in X:
             sp, du, mo = room.schedule_of(p, p.codec.from_row(row))
-            ref = room.heat(sp, du, mo, p.config.room_models, cfg, seed=4)["timeline"]
+            ref = room.heat(sp, du, mo, room.room_of(p), cfg, seed=4)["timeline"]
             ends = np.cumsum(np.asarray(du) * 60.0)
-            live = SteppedRoom(cfg, p.config.room_models, sp[0], seed=4)
+            live = SteppedRoom(cfg, room.room_of(p), sp[0], seed=4)
             temps = [live.T]
             for k in range(len(ref["t"]) - 1):
                 e = min(int(np.searchsorted(ends, k * cfg.dt, side="right")), len(ends) - 1)

@@ -424,22 +424,6 @@ def test_steady_schedule_is_followed(problems):
     assert np.allclose(q, np.round(q), atol=1e-6)  # 0.1 degC sensor resolution
 
 
-def test_room_reduces_to_the_fitted_curves(problems):
-    """No noise, no quantisation, control on the 3-minute grid, one element: the refined surrogate's
-    RMSE exactly. (Across elements they differ by design: the room keeps a continuous state, the
-    surrogate restarts its fitted curve at every element, as the replication code does.)"""
-    p = get_problem("thermostat", {"profile": "refined"})
-    cfg = room.RoomSimConfig(dt=180, control_period=180, sensor_noise=0, sensor_resolution=0)
-    days = [[{"temperature": t, "duration": d, "model": m}] for t in (16, 21, 25) for d in (60, 165, 240)
-            for m in (1, 4, 7)]
-    scenarios = [p.parse({"problem": "thermostat", "elements": els}) for els in days]
-    f1 = p.evaluate_scenarios(scenarios).f1
-    assert np.all(f1 > 0)
-    for sc, expect in zip(scenarios, f1):
-        sp, du, mo = room.schedule_of(p, sc)
-        assert room.heat(sp, du, mo, p.config.room_models, cfg)["rmse"] == pytest.approx(expect, abs=1e-9)
-
-
 # --- common ------------------------------------------------------------------------------------
 def test_determinism_and_seeds(problems):
     cases = [

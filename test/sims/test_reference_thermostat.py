@@ -1,11 +1,11 @@
 """The thermostat's reference (issue 16): an ideal controller on the same full-model room decides
 whether a failing schedule asks the impossible; and the surrogate's reference-relative objective.
 
-Known outcomes come from the room models. Model 7 heats towards T + 5.7 degC at 0.077 per 3 min:
-a 5 degC rise takes about 80 min, so hourly 20 <-> 25 degC swings cannot be followed. Model 1
-cools towards T - 5.6 degC at 0.029 per 3 min: a 5 degC drop takes about 230 min even with the
-heater off. A steady 20 degC day is easy for any controller, but not for an on/off thermostat with
-a 2 degC hysteresis or a sensor with 2 degC of noise.
+Known outcomes come from the physical room (issue 46). In model 7 the heater can hold the air at
+26.4 degC at most, so hourly 20 <-> 25 degC swings cannot be followed. In model 1 the ambient is
+16.3 degC, so with the heater off the room never reaches 16 degC. A steady 20 degC day is easy for
+any controller, but not for an on/off thermostat with a 2 degC hysteresis or one that decides only
+every 15 minutes (the heater warms the air about 0.4 degC a minute).
 """
 from __future__ import annotations
 
@@ -37,14 +37,14 @@ def scenario(problem, elements):
 # --- the ideal controller on the full-model room --------------------------------------------------
 def test_ideal_controller_heats_exactly_while_below_the_goal(problem):
     cfg = room.RoomSimConfig(controller="ideal")  # noise and hysteresis of the defaults are ignored
-    run = room.heat([20.0], [240.0], [2], problem.config.room_models, cfg, seed=3, initial_temperature=16.0)
-    tl = run["timeline"]
+    run = room.heat([20.0], [240.0], [2], room.room_of(problem), cfg, seed=3, initial_temperature=16.0)
+    tl = {k: v[:-1] for k, v in run["timeline"].items()}  # the last sample has no step after it
     assert np.array_equal(tl["heater"] > 0, tl["temperature"] < tl["setpoint"])  # decided every dt
     assert np.array_equal(tl["measured"], tl["temperature"])  # no noise, no quantisation
     reached = int(np.argmax(tl["temperature"] >= 20.0))
     assert reached > 0 and np.all(tl["heater"][:reached] == 1.0)  # full power until the set point
     assert np.abs(tl["temperature"][reached:] - 20.0).max() < 0.1
-    live = room.SteppedRoom(cfg, problem.config.room_models, 16.0, seed=3)
+    live = room.SteppedRoom(cfg, room.room_of(problem), 16.0, seed=3)
     assert np.array_equal([live.step(20.0, 2) for _ in range(len(tl["t"]) - 1)], tl["temperature"][1:])
 
 
@@ -63,7 +63,7 @@ def test_impossible_schedule_is_an_invalid_test(problem, elements):
     assert old.verdict == "FAIL(requirement)" and old.reference is None
 
 
-@pytest.mark.parametrize("options", [{"hysteresis": 2.0}, {"sensor_noise": 2.0}])
+@pytest.mark.parametrize("options", [{"hysteresis": 2.0}, {"control_period": 900.0}])
 def test_a_failure_the_ideal_controller_avoids_stays_a_failure(problem, options):
     out = full_model_executor(problem, **options).execute(scenario(problem, STEADY), seed=1)
     assert out.verdict == "FAIL(requirement)" and out.failed
@@ -106,8 +106,9 @@ def test_relative_objective_is_small_where_the_ideal_fails_as_badly(problem, ele
     sc = scenario(relative, elements)
     ev = relative.evaluate_scenarios([sc])
     assert ev.metrics["rmse"][0] > 1.8 and abs(ev.f1[0]) < 0.1 * ev.metrics["rmse"][0]
-    # the surrogate's ideal controller agrees with the full model's on what is impossible
-    assert ev.metrics["reference_rmse"][0] == pytest.approx(ideal_run(problem, sc, room.RoomSimConfig())["rmse"], abs=0.05)
+    # the surrogate's ideal controller (the paper's curves) and the full model's (the physical room)
+    # agree on what is impossible
+    assert ev.metrics["reference_rmse"][0] > 1.0 and ideal_run(problem, sc, room.RoomSimConfig())["rmse"] > 1.0
 
 
 def test_relative_objective_is_the_same_on_every_path():
