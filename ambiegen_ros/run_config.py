@@ -21,7 +21,7 @@ from typing import Any
 
 from .core.config import ConfigError, load_config_file
 from .core.problem import Problem
-from .core.search import SearchSettings
+from .core.settings import SearchSettings
 from .problems import PROBLEM_NAMES, get_problem, problem_class
 
 SETTING_NAMES = tuple(f.name for f in fields(SearchSettings))

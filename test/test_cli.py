@@ -205,6 +205,52 @@ def test_evaluate_scores_with_the_config_files_problem_config(tmp_path):
     assert drawn.returncode == 0 and (tmp_path / "map.png").exists(), drawn.stderr
 
 
+LIGHT_EVALUATE_NEVER_IMPORTS = ("pymoo", "scipy", "numba", "matplotlib", "cyclonedds", "rclpy", "rosbags", "mcap")
+"""What `ambiegen evaluate` of one line must start without: the search (pymoo, and scipy through
+it), numba (one line runs the kernels uncompiled), the pictures and the DDS / ROS log stack."""
+
+
+@pytest.mark.parametrize("problem", ["thermostat", "robot", "vehicle"])
+def test_evaluate_of_one_line_imports_no_search_plot_or_dds_library(tmp_path, problem):
+    """Issue 47: `--config` made `evaluate` import the whole search (run_config -> core.search ->
+    pymoo's NSGA-II -> scipy.spatial), 5x `import numpy`. Read from `python -X importtime` of the
+    command, a one-line file and a one-line suite, with and without the problem's run config
+    (bench/startup.py times the same command; a test never asserts a speed)."""
+    import numpy as np
+
+    from ambiegen_ros.problems import get_problem
+
+    case = get_problem(problem)
+    scenario = case.codec.from_rows(case.sample_rows(1, np.random.default_rng(0)))[0].to_dict()
+    one = write(tmp_path, "one.json", scenario)
+    suite = write(tmp_path, "one.jsonl", json.dumps(scenario) + "\n")
+    config = ROOT / "config" / f"{problem}.yaml"
+    for argv in ([str(one)], [str(one), "--config", str(config)], [str(suite), "--json", "--config", str(config)]):
+        out = subprocess.run([sys.executable, "-X", "importtime", "-m", "ambiegen_ros", "evaluate", *argv],
+                             capture_output=True, text=True, timeout=120)
+        assert out.returncode == 0, out.stderr[-2000:]
+        assert problem in out.stdout
+        imported = {line.split("|")[-1].strip().split(".")[0] for line in out.stderr.splitlines()
+                    if line.startswith("import time:")}
+        assert "numpy" in imported and "ambiegen_ros" in imported  # the reading itself works
+        heavy = sorted(imported & set(LIGHT_EVALUATE_NEVER_IMPORTS))
+        assert not heavy, f"evaluate {' '.join(argv)} imported {heavy}"
+
+
+def test_a_command_is_built_alone_with_the_same_parser_as_in_the_whole_command_line():
+    """`ambiegen COMMAND` builds only COMMAND's module (cli.COMMANDS): every command is there, and
+    its options are the whole parser's, so a user sees no difference but the start-up."""
+    from cli_shape import parser_shape  # test/helpers (pytest.ini's pythonpath)
+
+    from ambiegen_ros.cli import COMMANDS, build_parser
+
+    whole = parser_shape(build_parser())["commands"]
+    assert set(whole) == set(COMMANDS)
+    for command in COMMANDS:
+        alone = parser_shape(build_parser(command))["commands"]
+        assert command in alone and alone[command] == whole[command], command
+
+
 def test_every_command_that_scores_or_runs_a_scenario_takes_the_same_config_option():
     """One `--config` (cli/common.add_config_option) on every command that searches, scores or runs."""
     from cli_shape import parser_shape  # test/helpers (pytest.ini's pythonpath)

@@ -95,6 +95,29 @@ def test_this_environment_passes():
     assert deps.startup_errors() == []
 
 
+def test_versions_are_read_as_importlib_metadata_reads_them_without_importing_it(tmp_path, monkeypatch):
+    """deps reads the first metadata directory on the path itself (start-up, issue 47): the same
+    answers as ``importlib.metadata.version``, a fake dist-info or egg-info file first on the path too."""
+    from importlib import metadata
+
+    def expected(name: str) -> str | None:
+        try:
+            return metadata.version(name)
+        except metadata.PackageNotFoundError:
+            return None
+
+    for name in [d.name for d in deps.DEPENDENCIES] + ["pyyaml", "Shapely", "no-such-distribution"]:
+        assert deps.installed_version(name) == expected(name), name
+    fake_dist(tmp_path, "shapely", "1.8.5")
+    (tmp_path / "PyYAML-5.1-py3.11.egg-info").write_text("Metadata-Version: 1.1\nName: PyYAML\nVersion: 5.1\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert deps.installed_version("shapely") == expected("shapely") == "1.8.5"
+    assert deps.installed_version("PyYAML") == expected("PyYAML") == "5.1"
+    got = run(["-c", "import sys; from ambiegen_ros import deps; deps.startup_errors(); "
+                     "print('importlib.metadata' in sys.modules)"])
+    assert got.stdout.strip() == "False", got.stderr
+
+
 # --- fail early: one line, status 2 ------------------------------------------------------------------
 @pytest.mark.parametrize("entry", [
     ["-m", "ambiegen_ros.cli", "evaluate", "test/data/does-not-matter.json"],

@@ -9,31 +9,40 @@ from __future__ import annotations
 import argparse
 import sys
 
+from importlib import import_module
+
 from .. import __version__
-from . import campaign, doctor, evaluate, execute, experiment, nav2, search
 from .common import EXIT_BAD_INPUT
 
-REGISTRARS = (search.register, evaluate.register, execute.register, campaign.register,
-              experiment.register, nav2.register, doctor.register)
-"""In ``--help`` order: search, evaluate, show, execute, campaign, replay, recover, experiment,
-nav2-params, doctor."""
+REGISTRARS = ("search", "evaluate", "execute", "campaign", "experiment", "nav2", "doctor")
+"""The command modules, each with its ``register(sub)``; in ``--help`` order: search, evaluate, show,
+execute, campaign, replay, recover, experiment, nav2-params, doctor."""
+
+COMMANDS = {"search": "search", "evaluate": "evaluate", "show": "evaluate", "execute": "execute",
+            "campaign": "campaign", "replay": "campaign", "recover": "campaign", "experiment": "experiment",
+            "nav2-params": "nav2", "doctor": "doctor"}
+"""Command -> the module of ``REGISTRARS`` that registers it (test/test_cli.py checks the two agree)."""
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The whole command line; given a ``command`` of ``COMMANDS``, only the parsers of the module that
+    registers it: ``ambiegen evaluate`` then neither imports nor builds the campaign's options (whose
+    registration imports the campaign library; issue 47: start-up)."""
     parser = argparse.ArgumentParser(
         prog="ambiegen",
         description="AmbieGen: evolutionary search for environments in which autonomous systems fail.",
     )
     parser.add_argument("--version", action="version", version=f"ambiegen-ros {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for register in REGISTRARS:
-        register(sub)
+    for module in ([COMMANDS[command]] if command in COMMANDS else REGISTRARS):
+        import_module(f".{module}", __name__).register(sub)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     """Parse, check the dependencies the command needs, run it; bad input is one line, exit status 2."""
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(argv[0] if argv else None)
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
@@ -54,4 +63,4 @@ def main(argv: list[str] | None = None) -> int:
         return 130
 
 
-__all__ = ["build_parser", "main"]
+__all__ = ["COMMANDS", "REGISTRARS", "build_parser", "main"]

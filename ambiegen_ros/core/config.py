@@ -13,6 +13,7 @@ from typing import Any
 
 from .attributes import ScenarioError
 from .errors import ConfigError
+from .settings import SearchSettings  # a plain dataclass: reading a file imports no search (pymoo)
 
 
 def load_config_file(path: str | Path | None) -> dict[str, Any]:
@@ -28,8 +29,6 @@ def load_config_file(path: str | Path | None) -> dict[str, Any]:
         raise ConfigError(f"config: malformed YAML in {path}: {exc}")
     if not isinstance(data, dict):
         raise ConfigError(f"config: {path} must hold a mapping")
-    from .search import SearchSettings  # pymoo: only when a file is read
-
     allowed = {f.name for f in fields(SearchSettings)} | {"problem", "problem_config"}
     unknown = set(data) - allowed
     if unknown:

@@ -14,6 +14,10 @@ their F2 is the distance to the nearest other member of that population (written
 The budget counts every evaluation, the initial population included; the last generation is
 truncated so a run never evaluates more than ``evaluations`` scenarios.
 
+Random search draws ``population`` samples per ``ask``; with ``valid_samples`` (a campaign's: a
+scenario the problem calls invalid is never executed there) only samples the problem calls valid
+(``ValidSampler``), so its budget counts valid scenarios only.
+
 ``restarts: R`` splits the budget into R independent searches run one after the other, the first
 with the run's seed and each next with a seed derived from it (``restart_seed``). Their suites
 interleave, best of each first: one converged population fills a suite with near-copies of one
@@ -22,7 +26,8 @@ structure, which a slow system under test then runs over and over (issue 29's Na
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, field
+from collections import deque
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
@@ -44,55 +49,8 @@ from .operators import (
     ScenarioSampling,
 )
 
-from .names import ALGORITHMS, REFERENCES
-
-SUITES = ("best", "population")  # what a search hands on to be executed (``SearchSettings.suite``)
-
-
-@dataclass
-class SearchSettings:
-    """Everything that defines a run (recorded in ``config.json``). ``None`` = problem default."""
-
-    algorithm: str = "nsga2"
-    evaluations: int | None = None
-    time_budget: float | None = None
-    population: int | None = None
-    offspring: int | None = None
-    seed: int = 0
-    reference: str = "parent"
-    mutation_rate: float = 0.4
-    crossover_rate: float = 1.0
-    suite_size: int = 10
-    suite: str = "best"  # "best": the paper's (SO: the suite_size best; MO: the feasible front) | "population"
-    restarts: int = 1  # independent searches sharing the budget; their suites interleave (not random search's)
-
-    def resolved(self, problem: Problem) -> "SearchSettings":
-        """Fill unset values from the problem's paper budget and check them."""
-        if self.algorithm not in ALGORITHMS:
-            raise ValueError(f"algorithm: unknown {self.algorithm!r} (allowed: {'|'.join(ALGORITHMS)})")
-        if self.reference not in REFERENCES:
-            raise ValueError(f"reference: unknown {self.reference!r} (allowed: {'|'.join(REFERENCES)})")
-        if self.suite not in SUITES:
-            raise ValueError(f"suite: unknown {self.suite!r} (allowed: {'|'.join(SUITES)})")
-        budget = problem.paper_budget
-        out = SearchSettings(**asdict(self))
-        if out.evaluations is None and out.time_budget is None:
-            out.evaluations = budget.evaluations
-        out.population = out.population or budget.population
-        out.offspring = out.offspring or budget.offspring
-        for name in ("population", "offspring"):
-            if getattr(out, name) < 2:
-                raise ValueError(f"{name}: must be >= 2")
-        if out.evaluations is not None and out.evaluations < 1:
-            raise ValueError("evaluations: must be >= 1")
-        if out.restarts < 1:
-            raise ValueError("restarts: must be >= 1")
-        if out.restarts > 1 and out.evaluations is not None and out.evaluations < out.restarts * out.population:
-            raise ValueError(f"restarts: {out.restarts} searches need at least {out.restarts * out.population} "
-                             f"evaluations (a population each), not {out.evaluations}")
-        if out.time_budget is not None and out.time_budget <= 0:
-            raise ValueError("time_budget: must be > 0 seconds")
-        return out
+from .names import ALGORITHMS, REFERENCES  # noqa: F401 (re-exported)
+from .settings import SUITES, SearchSettings  # noqa: F401 (re-exported: a run's settings, light on their own)
 
 
 @dataclass
@@ -118,6 +76,32 @@ def non_dominated(f1: np.ndarray, f2: np.ndarray, feasible: np.ndarray) -> np.nd
     return idx[np.sort(front)]
 
 
+class ValidSampler:
+    """Random samples the problem calls valid (``Problem.evaluate(...).valid``, the search's
+    constraint), drawn from ``rng`` in batches of ``batch`` and handed out in the order drawn, each
+    with its surrogate F1. Random search with ``valid_samples`` draws here, and so does an RQ3
+    executor with nothing to run (``experiment.pipeline``: its clock pays the draw)."""
+
+    def __init__(self, problem: Problem, rng: np.random.Generator, batch: int = 64, tries: int = 20):
+        self.problem, self.rng, self.batch, self.tries = problem, rng, batch, tries
+        self._rows: deque[tuple[np.ndarray, float]] = deque()
+        self.drawn = 0
+
+    def draw(self, skip: Callable[[np.ndarray], bool] = lambda row: False) -> tuple[np.ndarray, float] | None:
+        """A valid sample ``skip`` does not drop, with its surrogate F1; None when ``tries`` batches held none."""
+        for _ in range(self.tries):
+            while self._rows:
+                row, f1 = self._rows.popleft()
+                if not skip(row):
+                    self.drawn += 1
+                    return row, f1
+            X = self.problem.sample_rows(self.batch, self.rng)
+            ev = self.problem.evaluate_rows(X)
+            f1 = np.nan_to_num(np.asarray(ev.f1, dtype=float), nan=0.0)
+            self._rows.extend((X[i], float(f1[i])) for i in np.flatnonzero(ev.valid))
+        return None
+
+
 def restart_seed(seed: int, restart: int) -> int:
     """The seed of restart ``restart`` of a run seeded ``seed``: the run's own for the first, so a run
     of R restarts begins as a run without any; independent streams after (numpy's SeedSequence)."""
@@ -133,9 +117,12 @@ def interleave(suites: list[Population]) -> Population:
 
 
 class Search:
-    """One run of one algorithm on one problem; ask/tell or ``run()`` with the surrogate."""
+    """One run of one algorithm on one problem; ask/tell or ``run()`` with the surrogate.
 
-    def __init__(self, problem: Problem, settings: SearchSettings):
+    ``valid_samples``: random search draws only samples the problem calls valid (module docstring);
+    GA and NSGA-II are not affected (they learn from invalid scenarios as constraint violations)."""
+
+    def __init__(self, problem: Problem, settings: SearchSettings, valid_samples: bool = False):
         self.problem = problem
         self.settings = settings.resolved(problem)
         self.codec = problem.codec
@@ -147,6 +134,7 @@ class Search:
         s = self.settings
         if s.algorithm == "random":  # samples are independent already: restarts change nothing
             self._rng = np.random.default_rng(s.seed)
+            self._valid = ValidSampler(problem, self._rng) if valid_samples else None
             self._archive = Population.empty()
             self._algorithm = None
             return
@@ -230,7 +218,9 @@ class Search:
         remaining = self.remaining()
         if self._algorithm is None:
             n = self.settings.population if remaining is None else min(self.settings.population, remaining)
-            rows = self.problem.sample_rows(n, self._rng)
+            rows = self.problem.sample_rows(n, self._rng) if self._valid is None else self._valid_rows(n)
+            if len(rows) == 0:  # the problem passed no sample of many batches: nothing to ask
+                return None
             self._pending = Population.new("X", rows)
         else:
             pop = self._algorithm.ask()
@@ -289,6 +279,13 @@ class Search:
         return self.result()
 
     # --- internals -----------------------------------------------------------------------
+    def _valid_rows(self, n: int) -> np.ndarray:
+        """Up to ``n`` valid samples (fewer only when the sampler gives up)."""
+        rows = []
+        while len(rows) < n and (drawn := self._valid.draw()) is not None:
+            rows.append(drawn[0])
+        return np.array(rows).reshape(len(rows), self.codec.n_var)
+
     def _split(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Canonical ``(G, lengths)`` of genome rows: diversity counts what the environment sees."""
         return self.problem.canonical(*self.codec.split(X))

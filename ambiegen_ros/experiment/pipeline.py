@@ -190,30 +190,6 @@ class SearchProcess:
         return sum(self.queue.push(row, f, self.t, pred) for row, f, pred in rows)
 
 
-class RandomFill:
-    """Valid random samples for an executor the search has no candidate for (drawn in batches,
-    restrictions checked by the surrogate's validity; the caller's clock pays the draw)."""
-
-    def __init__(self, problem, rng: np.random.Generator, batch: int = 64, tries: int = 20):
-        self.problem, self.rng, self.batch, self.tries = problem, rng, batch, tries
-        self._rows: deque[tuple[np.ndarray, float]] = deque()
-        self.drawn = 0
-
-    def draw(self, skip: Callable[[np.ndarray], bool]) -> tuple[np.ndarray, float] | None:
-        """A valid sample ``skip`` does not drop, with its surrogate F1; None when none was found."""
-        for _ in range(self.tries):
-            while self._rows:
-                row, f1 = self._rows.popleft()
-                if not skip(row):
-                    self.drawn += 1
-                    return row, f1
-            X = self.problem.sample_rows(self.batch, self.rng)
-            ev = self.problem.evaluate_rows(X)
-            f1 = np.nan_to_num(np.asarray(ev.f1, dtype=float), nan=0.0)
-            self._rows.extend((X[i], float(f1[i])) for i in np.flatnonzero(ev.valid))
-        return None
-
-
 def system_ran(outcome) -> bool:
     """Did the system under test run (what ``--execution-cost`` charges)? Not for a restriction
     reject nor for an invalid test decided before the run (no ``sut_failure_kind`` recorded)."""
@@ -423,7 +399,9 @@ def full_model_run(problem, settings, executor, fm: dict[str, Any], seed: int,
     novelty = settings.algorithm != "random" and fm.get("novelty", True)  # random search stays plain sampling
     free = [0.0] * max(1, int(fm.get("executors", 1)))  # each executor's clock
     waited = 0.0
-    fill = RandomFill(problem, np.random.default_rng([seed, 11])) if fm.get("executor_idle", "random") == "random" \
+    from ..core.search import ValidSampler  # an executor's random fill: valid samples, as random search's
+
+    fill = ValidSampler(problem, np.random.default_rng([seed, 11])) if fm.get("executor_idle", "random") == "random" \
         else None
     while True:
         e = int(np.argmin(free))
@@ -476,6 +454,5 @@ def full_model_run(problem, settings, executor, fm: dict[str, Any], seed: int,
     return out
 
 
-__all__ = ["DISTINCT_KEPT", "SAMPLE_CAP", "Candidate", "CandidateQueue", "FullModelTally", "RandomFill",
-           "SearchProcess",
+__all__ = ["DISTINCT_KEPT", "SAMPLE_CAP", "Candidate", "CandidateQueue", "FullModelTally", "SearchProcess",
            "full_model_run", "make_clock", "system_ran", "warm_up"]

@@ -68,6 +68,7 @@ class RemoteExecution:
         self.settled = 0
         self.published = 0
         self.withdrawn = 0  # added but never sent: the budget ran out first
+        self.not_sent = 0  # never sent: the caller settled them itself (``settle_unsent``)
         self.failures = 0
         self.timeouts = 0
         self.errors = 0
@@ -79,6 +80,13 @@ class RemoteExecution:
         self.dispatcher.add(meta.scenario_id, meta.scenario_id)
         self.scenarios[meta.scenario_id] = (scenario, meta)
         self.added += 1
+
+    def settle_unsent(self, scenario_id: int, outcome: Outcome) -> None:
+        """A scenario the caller keeps from the workers: it takes its id (the next scenario's id and
+        seed are as if it had been sent) and settles at once with ``outcome``, for ``take``."""
+        self.added += 1
+        self.not_sent += 1
+        self.outcomes[scenario_id] = outcome
 
     def withdraw(self) -> int:
         """Stop: the scenarios not sent yet never will be (``Dispatcher.withdraw``); how many."""

@@ -5,7 +5,9 @@ all give the same pictures. The problem is rebuilt from the run config the log r
 are grouped by what failed (``sims.signature``, greedy in scenario order, as RQ3 counts them); each
 distinct one is executed again in process with the scenario's recorded seed, so that the picture
 has the full run (a thermostat's curves), and drawn from the logged trajectory when the run is not
-the logged one (another model, another machine's numbers). The first failure counted as the same
+the logged one (another model, another machine's numbers). A system under test's result (one that
+came through ``sut_adapter``: Nav2, the ND stack) is always drawn as logged, and its picture's title
+names that system (``system_of``), never our full model. The first failure counted as the same
 as an earlier one is drawn beside it (``same_failure_<a>_<b>.png``), so a reader can judge the
 grouping. Files are never overwritten.
 """
@@ -34,6 +36,7 @@ def draw_failures(mcap: str | Path, out_dir: str | Path, limit: int = PICTURES_K
     problem_config = dict(config.get("problem_config") or {})
     problem = get_problem(rec.problem, problem_config)
     full = full_model_executor(problem) if config.get("sim_model", "full") == "full" else None
+    workers = "full model" if full is not None else "surrogate"  # what the sim workers ran
     distinct = DistinctFailures()
     pictures: list[dict[str, Any]] = []
     pair: dict[str, Any] | None = None  # what was drawn of it (None: nothing new)
@@ -46,7 +49,7 @@ def draw_failures(mcap: str | Path, out_dir: str | Path, limit: int = PICTURES_K
     def shown(sid: int):  # the full run when it is the logged one, else the logged trajectory (each run once)
         if sid not in runs:
             logged = runs[sid] = rec.outcomes[sid]
-            if full is not None:
+            if full is not None and not from_system_under_test(logged):
                 again = full.execute(rec.scenarios[sid], seed=scenario_seed(rec.seed, sid))
                 if again.failure_kind == logged.failure_kind:
                     runs[sid] = again
@@ -67,16 +70,40 @@ def draw_failures(mcap: str | Path, out_dir: str | Path, limit: int = PICTURES_K
                 a = next(first for s, first in first_of if same_failure(sig, s))
                 path = out_dir / f"same_failure_{a:05d}_{sid:05d}.png"
                 if not path.exists():
-                    save_side_by_side(problem, [(rec.scenarios[a], shown(a)), (scenario, shown(sid))], path,
-                                      f"counted as one failure: {sig.describe()}")
+                    first, second = shown(a), shown(sid)
+                    save_side_by_side(problem, [(rec.scenarios[a], first), (scenario, second)], path,
+                                      f"counted as one failure: {sig.describe()}",
+                                      [system_of(first, workers), system_of(second, workers)])
                     pair = {"scenario_ids": [a, sid], "signature": sig.describe(), "path": str(path)}
             continue
         first_of.append((sig, sid))
         path = out_dir / f"failure_{sid:05d}_{sig.kind}.png"
         if len(pictures) >= limit or path.exists():  # never drawn over: an earlier picture stays
             continue
-        save_execution_plot(problem, scenario, shown(sid), path)
+        drawn = shown(sid)
+        save_execution_plot(problem, scenario, drawn, path, system=system_of(drawn, workers))
         pictures.append({"scenario_id": sid, "signature": sig.describe(), "path": str(path)})
     return {"certified_failures": len(distinct.seen) + known, "known_failures": known,
             "distinct_failures": len(distinct),
             "failure_pictures": pictures, "same_failure_pair": pair}
+
+
+def from_system_under_test(outcome: Any) -> bool:
+    """A result ``sim_nodes/sut_adapter`` published (it adds the stamps' clock to every result, and
+    Nav2's own status to Nav2's); a sim worker's full model or surrogate adds neither."""
+    metrics = outcome.metrics or {}
+    return "stamp_clock" in metrics or "nav2_status" in metrics
+
+
+def system_of(outcome: Any, workers: str = "full model") -> str:
+    """Who drove a run, for its picture's title: Nav2 or another system under test, with the time
+    scale it ran at; else ``workers``, what the run's sim workers ran (our full model)."""
+    metrics = outcome.metrics or {}
+    if not from_system_under_test(outcome):
+        return workers
+    name = "Nav2" if "nav2_status" in metrics else "system under test"
+    try:
+        scale = float(metrics.get("time_scale") or 0.0)
+    except (TypeError, ValueError):
+        scale = 0.0
+    return f"{name} (time scale {scale:g})" if scale > 0 else name

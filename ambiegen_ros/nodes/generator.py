@@ -10,6 +10,14 @@ Modes:
 Every published scenario ends with a result from a worker or an explicit ``SIM_TIMEOUT`` result
 written by this node (``execution.RemoteExecution`` over ``core.dispatch``).
 
+A scenario the problem calls invalid (``Problem.evaluate(...).valid``, the validity the search
+takes as its constraint) is never sent to a simulator or a stack, in either mode: it is logged on
+``/ambiegen/<problem>/not_sent`` (its header names the broken rule) and settles here as the sims
+would have answered it (``INVALID_SCENARIO``, "restriction broken: <rule>"), so the search is
+told what it was told before, scenario ids and seeds stay those of a run that sent everything, and
+a seed gives the same run. Random search draws valid samples only (``Search(valid_samples=True)``),
+so its budget goes to scenarios that are executed.
+
 Reproducible: a seed gives the same scenarios, F1 values and suite with any number of workers
 and any batching on their side. Each generation is told in scenario order once all its results
 are in, and no clock enters the search unless ``time_budget`` or ``execution_budget`` is set (a
@@ -30,8 +38,9 @@ in_the_loop), run_id, suite_file (write the final suite there as JSON; '' = none
 min_subscribers, min_workers, subscriber_wait (s), exit_when_done, status_period (s),
 result_timeout (s), worker_timeout (s), worker_wait (s), max_attempts, max_in_flight.
 The run config (latched, and in the recorder's MCAP metadata) records the profile.
-Topics: publishes /ambiegen/run_config (latched), /ambiegen/status, /ambiegen/<problem>/scenarios
-and SIM_TIMEOUT records on /ambiegen/results; subscribes /ambiegen/results and /ambiegen/workers.
+Topics: publishes /ambiegen/run_config (latched), /ambiegen/status, /ambiegen/<problem>/scenarios,
+/ambiegen/<problem>/not_sent and SIM_TIMEOUT records on /ambiegen/results; subscribes
+/ambiegen/results and /ambiegen/workers.
 """
 from __future__ import annotations
 
@@ -55,6 +64,7 @@ from ..ros.limits import check_name
 from ..ros.qos import DEFAULT, LATCHED
 from ..ros.transport import create_node
 from ..sims.known_failures import is_known
+from ..sims.outcome import Outcome
 from .execution import RemoteExecution
 from . import run_node
 
@@ -114,14 +124,18 @@ class Generator:
             offspring=offspring or None,
             seed=None if seed < 0 else seed,
         )
-        self.search = Search(self.problem, self.settings)
-        self.config = run_config(
-            self.problem, self.settings, {"run_id": self.run_id, "mode": self.mode, "profile": self.problem.profile}
-        )
+        self.search = Search(self.problem, self.settings, valid_samples=True)
+        extra = {"run_id": self.run_id, "mode": self.mode, "profile": self.problem.profile}
+        if self.settings.algorithm == "random":
+            extra["random_samples"] = "valid"  # what the problem calls invalid would never be sent
+        self.config = run_config(self.problem, self.settings, extra)
 
         self.pub_config = n.create_publisher(topics.RUN_CONFIG_TYPE, topics.RUN_CONFIG, LATCHED)
         self.pub_status = n.create_publisher(topics.STATUS_TYPE, topics.STATUS, DEFAULT)
         self.remote = RemoteExecution(n, self.problem, self.run_id)
+        self.pub_not_sent = n.create_publisher(
+            topics.SCENARIO_TYPES[self.problem.name], topics.not_sent(self.problem.name), topics.NOT_SENT_QOS
+        )
 
         self.state = "waiting"
         self.waiting_since = time.monotonic()
@@ -224,16 +238,18 @@ class Generator:
     def start_suite(self) -> None:
         result = self.search.result()
         self.write_suite(result)
-        self.node.logger.info(
-            f"search done: {result.evaluations} evaluations, best F1 {result.best_f1:.3f}; "
-            f"executing {len(result.suite)} suite scenarios"
-        )
         for entry in result.suite:
             scenario = self.problem.parse(entry["scenario"])
             meta = ScenarioMeta(
                 self.run_id, self.remote.next_id(), 0, self.settings.seed, entry["f1"], entry["f2"], entry["valid"], entry["reason"] or ""
             )
-            self.remote.add(scenario, meta)
+            self.hand_over(scenario, meta)
+        not_sent = self.remote.not_sent
+        self.node.logger.info(
+            f"search done: {result.evaluations} evaluations, best F1 {result.best_f1:.3f}; "
+            f"executing {len(result.suite) - not_sent} suite scenarios"
+            + (f" ({not_sent} more not sent: the problem calls them invalid)" if not_sent else "")
+        )
         self.begin_execution()
 
     def ask_batch(self) -> bool:
@@ -248,9 +264,20 @@ class Generator:
                 self.run_id, self.remote.next_id(), self.generation, self.settings.seed,
                 float(surrogate.f1[i]), float("nan"), bool(surrogate.valid[i]), surrogate.reasons[i] or "",
             )
-            self.remote.add(self.problem.codec.from_row(row), meta)
+            self.hand_over(self.problem.codec.from_row(row), meta)
             self.batch.append(meta.scenario_id)
         return True
+
+    def hand_over(self, scenario, meta: ScenarioMeta) -> None:
+        """Send a scenario to the workers, unless the problem calls it invalid (``meta.valid``):
+        then log it on the not_sent topic with its reason and settle it here (module docstring)."""
+        if meta.valid:
+            self.remote.add(scenario, meta)
+            return
+        meta.attempt = 0  # never dispatched
+        n = self.node
+        self.pub_not_sent.publish(conversions.scenario_message(n.new_message, n.now_ns(), self.problem, scenario, meta))
+        self.remote.settle_unsent(meta.scenario_id, Outcome.rejected(f"restriction broken: {meta.reason}"))
 
     def tell_if_complete(self) -> None:
         if not self.batch or any(i not in self.remote.outcomes for i in self.batch):
@@ -276,7 +303,8 @@ class Generator:
         self.node.logger.info(
             f"run {self.run_id} done: {r.published} scenarios, {r.settled} settled, "
             f"{r.failures} failures, {r.invalid_tests} invalid tests, {r.timeouts} timeouts, {r.errors} errors, "
-            f"{r.invalid} invalid" + (f"; {r.withdrawn} not sent (budget spent)" if r.withdrawn else "")
+            f"{r.invalid} invalid" + (f"; {r.not_sent} not sent (the problem calls them invalid)" if r.not_sent else "")
+            + (f"; {r.withdrawn} not sent (budget spent)" if r.withdrawn else "")
         )
         if self.exit_when_done:
             # the spin ends; run_node then waits until the last samples are acknowledged (finish_io)

@@ -1,10 +1,13 @@
 """Reading a run back from its MCAP log: decoded messages, metadata and the campaign summary.
 
 The summary is computed from the log alone (not from what the generator believes), so it is the
-proof that every published scenario ended with a result or an explicit timeout record.
+proof that every published scenario ended with a result or an explicit timeout record. It counts
+executions: the scenarios the generator did not send because the problem calls them invalid
+(``topics.not_sent``) are counted apart, as ``not_sent``, never among the outcomes.
 """
 from __future__ import annotations
 
+from collections import Counter
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -36,22 +39,28 @@ def read_metadata(path: str | Path) -> dict[str, dict[str, str]]:
 
 
 def summarize(path: str | Path, run_id: str | None = None) -> dict[str, Any]:
-    """Counts per run from the log: scenarios, results, failures, timeouts, errors, unresolved ids;
-    for a run against Nav2 (results with ``nav2_recoveries``), its near misses: passes that needed
-    Nav2's recovery branch."""
+    """Counts per run from the log: scenarios, results, failures, timeouts, errors, unresolved ids,
+    scenarios not sent (the problem calls them invalid); for a run against Nav2 (results with
+    ``nav2_recoveries``), its near misses: passes that needed Nav2's recovery branch."""
     scenario_topics = {topics.scenarios(p) for p in topics.SCENARIO_TYPES}
+    not_sent_topics = {topics.not_sent(p) for p in topics.SCENARIO_TYPES}
     scenarios: dict[int, int] = {}
+    not_sent: dict[int, str] = {}  # scenario id -> the rule it breaks (its reason up to the first ':')
     results: dict[int, Any] = {}
     duplicates = 0
     kinds: dict[str, int] = {}
     nav2_results, near_misses = 0, 0
     last_status = None
-    for topic, _, _, msg in iter_messages(path, scenario_topics | {topics.RESULTS, topics.STATUS}):
-        if topic in scenario_topics:
+    for topic, _, _, msg in iter_messages(path, scenario_topics | not_sent_topics | {topics.RESULTS, topics.STATUS}):
+        if topic in scenario_topics or topic in not_sent_topics:
             if run_id is None:
                 run_id = msg.meta.run_id
-            if msg.meta.run_id == run_id:
-                sid = int(msg.meta.scenario_id)
+            if msg.meta.run_id != run_id:
+                continue
+            sid = int(msg.meta.scenario_id)
+            if topic in not_sent_topics:
+                not_sent[sid] = msg.meta.invalid_reason.split(":", 1)[0].strip() or "?"
+            else:
                 scenarios[sid] = scenarios.get(sid, 0) + 1
         elif topic == topics.RESULTS:
             if run_id is not None and msg.run_id != run_id:
@@ -74,6 +83,8 @@ def summarize(path: str | Path, run_id: str | None = None) -> dict[str, Any]:
         "run_id": run_id,
         "mcap": str(path),
         "scenarios_published": len(scenarios),
+        "not_sent": len(not_sent),
+        "not_sent_rules": dict(Counter(not_sent.values()).most_common()),
         "scenario_messages": sum(scenarios.values()),
         "results_received": sum(1 for sid in results if sid in scenarios),
         "failures": sum(1 for m in results.values() if m.failed),

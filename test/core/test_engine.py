@@ -229,6 +229,29 @@ def test_search_respects_budget_and_reports_positive_objectives(algorithm):
     assert np.allclose(PROBLEM.evaluate_scenarios(scenarios).f1, f1)
 
 
+def test_random_search_with_valid_samples_spends_its_budget_on_valid_scenarios_only():
+    """A campaign's random search (issue 47): every sample it asks for is one the problem calls
+    valid, the budget counts those, a seed gives the same samples; GA and NSGA-II are not affected."""
+    settings = SearchSettings(algorithm="random", seed=4, evaluations=90, population=20)
+
+    def asked(algorithm: str, valid_samples: bool) -> list[np.ndarray]:
+        search, rows = Search(PROBLEM, SearchSettings(**{**vars(settings), "algorithm": algorithm}), valid_samples), []
+        while (X := search.ask()) is not None:
+            rows.append(X)
+            search.tell(PROBLEM.evaluate_rows(X))
+        assert search.evaluations == 90
+        return rows
+
+    plain, valid = asked("random", False), asked("random", True)
+    assert not PROBLEM.evaluate_rows(np.vstack(plain)).valid.all()  # this seed's plain samples break the rule
+    assert PROBLEM.evaluate_rows(np.vstack(valid)).valid.all() and len(np.vstack(valid)) == 90
+    assert all(np.array_equal(a, b) for a, b in zip(valid, asked("random", True)))  # same seed, same samples
+    for algorithm in ("ga", "nsga2"):
+        assert all(np.array_equal(a, b) for a, b in zip(asked(algorithm, False), asked(algorithm, True)))
+    never_valid = ToyProblem(max_valid_length=0)  # the sampler gives up: nothing to ask, the run ends
+    assert Search(never_valid, settings, valid_samples=True).ask() is None
+
+
 def test_a_population_suite_hands_on_every_feasible_member_best_first():
     """``suite: population``: the front and more (for a slow stack that can run more maps than a
     front holds), all above alpha, best F1 first; the front is among them."""

@@ -126,7 +126,7 @@ def test_ros2_launch_campaign_ends_by_itself_with_every_scenario_answered(launch
     with open(mcap, "rb") as fh:
         assert make_reader(fh).get_summary() is not None, "the MCAP has no summary section: not finalised"
     summary = answered(mcap)
-    assert summary["scenarios_published"] >= LAUNCH_EVALUATIONS and summary["final_state"] == "done"
+    assert summary["scenarios_published"] + summary["not_sent"] >= LAUNCH_EVALUATIONS and summary["final_state"] == "done"
     workers = set(result_workers(mcap, summary["run_id"]).values())
     assert len(workers) == 2 and all(w.startswith("thermostat_sim_") for w in workers), workers
     assert summary["run_id"] in run.stdout + run.stderr  # the launch's own summary names the run
@@ -176,7 +176,9 @@ def test_a_fast_dds_launch_of_2000_evaluations_loses_nothing(jazzy, workspace, t
                               evaluations=2000, workers=2, seed=11, mode="in_the_loop")
     summary = answered(mcap)
     counts = rosbags_counts(mcap)
-    assert counts[topics.scenarios("thermostat")] == counts[topics.RESULTS] == summary["scenarios_published"] == 2000, counts
+    assert counts[topics.scenarios("thermostat")] == counts[topics.RESULTS] == summary["scenarios_published"], counts
+    assert counts.get(topics.not_sent("thermostat"), 0) == summary["not_sent"], counts
+    assert summary["scenarios_published"] + summary["not_sent"] == 2000, counts
 
 
 COUNTER = """

@@ -123,6 +123,13 @@ def test_summary_says_how_evaluations_became_published_scenarios():
     assert "search     2000 evaluations -> suite of 3 scenarios published, best F1 4.25, state done" in table
     loop = summary_table({"run_id": "r", "mode": "in_the_loop", **counts, "scenarios_published": 1})
     assert "2000 evaluations -> 1 scenario published (in the loop: the sims give every F1)" in loop
+    # the scenarios the problem calls invalid were never sent (issue 47): counted apart, with their rules
+    unsent = summary_table({"run_id": "r", "mode": "in_the_loop", **counts, "scenarios_published": 1,
+                            "not_sent": 5, "not_sent_rules": {"leaves the map": 4, "too sharp": 1}})
+    assert re.search(r"^  not sent +5  \(the problem calls them invalid, never executed; logged with the rule they "
+                     r"break: leaves the map 4, too sharp 1\)$", unsent, re.M), unsent
+    assert "1 scenario published (in the loop: the sims give every F1), 5 not sent (invalid)" in unsent
+    assert "not sent" not in loop
 
 
 # --- the launch file uses the plan ------------------------------------------------------------------

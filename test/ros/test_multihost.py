@@ -2,7 +2,7 @@
 
 The hosts are Linux network namespaces on one bridge with multicast on (test/helpers/netns.py);
 traffic never leaves them. ``ambiegen campaign --workers 0 --remote-workers 4 --discovery-range
-subnet`` runs an in-the-loop thermostat campaign of 5,000 evaluations on host A with two surrogate
+subnet`` runs an in-the-loop thermostat campaign of 7,000 evaluations on host A with two surrogate
 workers on each of B and C. Faults fire on events, never at wall-clock offsets (a faster or
 slower machine sees the same run): once every worker has answered and a tenth of the budget is
 done, host C's cable is pulled; once the generator has declared both C workers lost, it is
@@ -34,7 +34,7 @@ import jazzy_env  # noqa: E402
 import netns  # noqa: E402
 from ambiegen_ros.sims.outcome import FAILURE_KINDS  # noqa: E402
 
-EVALUATIONS = 5000
+EVALUATIONS = 7000
 WORKERS = {"b1": "b", "b2": "b", "c1": "c", "c2": "c"}
 LOG_LINE = re.compile(r"\[(?:WARN|INFO)\] \[(\d+\.\d+)\] \[generator\]: worker (\S+) (lost|is back)")
 
@@ -91,12 +91,13 @@ def test_campaign_across_hosts_survives_a_cut_link_and_a_killed_worker(network, 
     assert run["returncode"] == 0, f"{brief}\n{run['stderr'][-3000:]}\n{run['generator_log'][-3000:]}"
     assert summary["discovery_range"] == "SUBNET"
     assert summary["evaluations"] == EVALUATIONS, brief
-    assert summary["scenarios_published"] == summary["results_received"] == EVALUATIONS, brief
+    assert summary["scenarios_published"] == summary["results_received"], brief
+    assert summary["scenarios_published"] + summary["not_sent"] == EVALUATIONS, brief  # the invalid are never sent
     assert summary["unresolved"] == [] and summary["timeouts"] == 0 and summary["errors"] == 0, brief
 
     dispatch = run["dispatch"]
     sends, results = dispatch["sends"], dispatch["results"]
-    assert sorted(sends) == sorted(results) == list(range(EVALUATIONS))  # every scenario and result in the MCAP
+    assert sorted(sends) == sorted(results) and len(sends) == summary["scenarios_published"]  # all in the MCAP
     first = {sid: r[0] for sid, r in results.items()}
     assert not [sid for sid, r in first.items() if r[2] == FAILURE_KINDS["sim_timeout"] or r[1] not in WORKERS]
 

@@ -35,7 +35,7 @@ from ambiegen_ros.ros import conversions, topics  # noqa: E402
 from ambiegen_ros.ros.conversions import ScenarioMeta  # noqa: E402
 from ambiegen_ros.ros.mcap_log import recover  # noqa: E402
 from ambiegen_ros.ros.qos import LATCHED, STREAM  # noqa: E402
-from ambiegen_ros.ros.runlog import summarize  # noqa: E402
+from ambiegen_ros.ros.runlog import iter_messages, summarize  # noqa: E402
 from ambiegen_ros.campaign import SIM_MODULES  # noqa: E402
 from ambiegen_ros.ros.types import get_registry  # noqa: E402
 from ambiegen_ros.sims.outcome import FAILURE_KINDS  # noqa: E402
@@ -152,7 +152,7 @@ def _campaign(domain: int, out: Path, problem: str, algorithm: str, evaluations:
 
 def _read_run(mcap: Path) -> dict[str, Any]:
     """Everything of a run as rosbags decodes it from the schema text stored in the file."""
-    run: dict[str, Any] = {"scenarios": [], "results": [], "status": [], "config": [], "connections": {}}
+    run: dict[str, Any] = {"scenarios": [], "not_sent": [], "results": [], "status": [], "config": [], "connections": {}}
     with AnyReader([mcap]) as reader:
         run["connections"] = {c.topic: c for c in reader.connections}
         for conn, stamp, raw in reader.messages():
@@ -160,6 +160,10 @@ def _read_run(mcap: Path) -> dict[str, Any]:
             if conn.topic.endswith("/scenarios"):
                 m = msg.meta
                 run["scenarios"].append((int(m.scenario_id), m.assigned_worker, int(m.attempt), m.run_id, m.problem))
+            elif conn.topic.endswith("/not_sent"):
+                m = msg.meta
+                run["not_sent"].append((int(m.scenario_id), m.scenario_json, bool(m.surrogate_valid), m.invalid_reason,
+                                        int(m.attempt), m.run_id))
             elif conn.topic == topics.RESULTS:
                 run["results"].append((int(msg.scenario_id), msg.worker, int(msg.failure_kind), msg.run_id, msg.detail))
             elif conn.topic == topics.STATUS:
@@ -173,7 +177,10 @@ def _done_line(log: str) -> dict[str, Any]:
     match = DONE.search(log)
     assert match, f"no 'done' line in the generator log:\n{log[-2000:]}"
     keys = ("run_id", "scenarios", "settled", "failures", "invalid_tests", "timeouts", "errors", "invalid")
-    return {k: (v if k == "run_id" else int(v)) for k, v in zip(keys, match.groups())}
+    done = {k: (v if k == "run_id" else int(v)) for k, v in zip(keys, match.groups())}
+    unsent = re.search(r"; (\d+) not sent \(the problem calls them invalid\)", log[match.end():].split("\n", 1)[0])
+    done["not_sent"] = int(unsent.group(1)) if unsent else 0
+    return done
 
 
 def _assert_summary_consistent(summary: dict[str, Any], out: Path) -> None:
@@ -190,6 +197,8 @@ def _assert_summary_consistent(summary: dict[str, Any], out: Path) -> None:
     done = _done_line((out / "logs" / "generator.log").read_text())
     assert done["run_id"] == summary["run_id"]
     assert (done["scenarios"], done["settled"]) == (summary["scenarios_published"], summary["results_received"]), brief
+    assert done["not_sent"] == summary["not_sent"] == sum(summary["not_sent_rules"].values()), brief
+    assert "invalid_scenario" not in summary["outcomes"], brief  # what the problem calls invalid is never sent
     assert (done["failures"], done["invalid_tests"], done["timeouts"], done["errors"], done["invalid"]) == (
         summary["failures"], summary["invalid_tests"], summary["timeouts"], summary["errors"], summary["invalid"]
     ), brief
@@ -241,6 +250,9 @@ CAMPAIGNS = {
     # the README's first command, smaller: refined roads searched in the loop find certified failures
     "demo": (None, "vehicle", "nsga2", 300, {"population": 50, "offspring": 50, "mode": "in_the_loop", "workers": 2,
                                              "profile": "refined"}),
+    # random maps in the loop: drawn from every sample, 17 of these 40 would have had no route
+    "random": (None, "robot", "random", 40, {"population": 20, "mode": "in_the_loop", "profile": "refined",
+                                             "sim_model": "surrogate"}),
 }
 
 
@@ -285,9 +297,6 @@ FULL_MODEL_OBJECTIVES = {"thermostat": "thermostat_rmse", "robot": "robot_time",
 def test_campaign_suites_run_on_the_full_models_and_stream_timelines(campaigns, name):
     """The suite is executed by the full-model simulators (their objective, their failure kinds),
     and each execution is streamed as standard messages (Odometry / Temperature) into the log."""
-    from ambiegen_ros.ros.runlog import iter_messages
-    from ambiegen_ros.sims.outcome import FAILURE_KINDS
-
     _, summary, _, _ = campaigns[name]
     problem = CAMPAIGNS[name][1]
     results, samples = [], 0
@@ -313,8 +322,8 @@ def test_in_the_loop_campaign_end_to_end(campaigns):
     assert code == 0, output[-3000:]
     _assert_summary_consistent(summary, out)
     evaluations = CAMPAIGNS["in_the_loop"][3]
-    # in the loop every evaluation is a scenario executed by a sim node
-    assert summary["scenarios_published"] == evaluations == summary["evaluations"]
+    # in the loop every evaluation is a scenario executed by a sim node, or one the problem calls invalid
+    assert summary["scenarios_published"] + summary["not_sent"] == evaluations == summary["evaluations"]
     assert summary["mode"] == "in_the_loop"
 
 
@@ -327,7 +336,7 @@ def test_a_spent_execution_budget_stops_sending_at_once_and_the_sent_scenarios_f
     withdrawn = re.search(r"budget spent: (\d+) scenarios not sent", log)
     assert withdrawn, log[-2000:]
     assert 1 <= summary["scenarios_published"] < 30  # one generation is 30 scenarios
-    assert summary["scenarios_published"] + int(withdrawn.group(1)) == 30
+    assert summary["scenarios_published"] + summary["not_sent"] + int(withdrawn.group(1)) == 30
     assert f"{withdrawn.group(1)} not sent (budget spent)" in log
 
 
@@ -362,6 +371,56 @@ def test_a_campaign_draws_each_distinct_certified_failure(campaigns, tmp_path):
     assert [Path(p["path"]).name for p in elsewhere["failure_pictures"]] == [Path(p["path"]).name for p in pictures]
 
 
+def _scenario_validity(summary: dict[str, Any], scenario_jsons: list[str]) -> list[tuple[bool, str | None]]:
+    """What the run's own problem (rebuilt from the run config in the log) says of each scenario."""
+    from ambiegen_ros.ros.runlog import read_metadata
+
+    config = json.loads(read_metadata(summary["mcap"])["ambiegen_run"]["config_json"])
+    problem = get_problem(config["problem"], config["problem_config"])
+    ev = problem.evaluate_scenarios([problem.parse(json.loads(text)) for text in scenario_jsons])
+    return list(zip(ev.valid.tolist(), ev.reasons))
+
+
+def test_a_campaign_never_sends_a_scenario_the_problem_calls_invalid(campaigns):
+    """Issue 47: the search's invalid roads (its constraint violations) are logged with their reason
+    and told to the search, never sent to a simulator; the summary counts them apart."""
+    code, summary, out, output = campaigns["demo"]
+    assert code == 0, output[-3000:]
+    _assert_summary_consistent(summary, out)
+    assert summary["not_sent"] > 0 and summary["invalid"] == 0, summary  # the search makes invalid roads
+    assert summary["scenarios_published"] + summary["not_sent"] == summary["evaluations"] == 300
+    run = _read_run(Path(summary["mcap"]))
+    sent = {s[0] for s in run["scenarios"]}
+    unsent = {s[0]: s for s in run["not_sent"]}
+    assert len(unsent) == len(run["not_sent"]) == summary["not_sent"]
+    assert sorted(sent | set(unsent)) == list(range(300)) and not sent & set(unsent)
+    # no simulator got one: every result is a sent scenario's, from a sim worker
+    assert {r[0] for r in run["results"]} == sent and len(run["results"]) == len(sent)
+    assert all(r[1].startswith("vehicle_sim_") and r[2] != INVALID for r in run["results"])
+    # each one in the log with the rule the problem itself names; every sent one is valid by it
+    judged = _scenario_validity(summary, [s[1] for s in unsent.values()])
+    for (sid, _, valid, reason, attempt, _), (really_valid, rule) in zip(unsent.values(), judged):
+        assert not valid and not really_valid and reason == rule and reason and attempt == 0, (sid, reason, rule)
+    assert sum(summary["not_sent_rules"].values()) == summary["not_sent"]
+    assert re.search(rf"^\s+not sent\s+{summary['not_sent']}\s", output, re.M), output[-3000:]
+
+
+def test_random_search_in_a_campaign_sends_only_valid_maps(campaigns):
+    """Random search draws valid scenarios (as an RQ3 executor's random fill does): its whole budget
+    is executed, none is a map without a route."""
+    code, summary, out, output = campaigns["random"]
+    assert code == 0, output[-3000:]
+    _assert_summary_consistent(summary, out)
+    assert summary["not_sent"] == 0 and summary["scenarios_published"] == summary["evaluations"] == 40, summary
+    run = _read_run(Path(summary["mcap"]))
+    scenarios = {}
+    for topic, _, _, msg in iter_messages(summary["mcap"], {topics.scenarios("robot")}):
+        scenarios[int(msg.meta.scenario_id)] = msg.meta.scenario_json
+    assert sorted(scenarios) == list(range(40)) and not run["not_sent"]
+    assert all(valid for valid, _ in _scenario_validity(summary, list(scenarios.values())))
+    assert json.loads(run["config"][0].config_json)["random_samples"] == "valid"
+
+
 def test_mcap_read_back_by_rosbags_holds_the_whole_run(campaigns):
     code, summary, out, _ = campaigns["in_the_loop"]
     assert code == 0
@@ -370,9 +429,11 @@ def test_mcap_read_back_by_rosbags_holds_the_whole_run(campaigns):
     done = _done_line((out / "logs" / "generator.log").read_text())
     run_id = done["run_id"]
     sids = [s[0] for s in run["scenarios"] if s[3] == run_id]
+    unsent = [s[0] for s in run["not_sent"] if s[5] == run_id]
     rids = [r[0] for r in run["results"] if r[3] == run_id]
     assert len(sids) == len(set(sids)) == done["scenarios"] == summary["scenario_messages"]
-    assert sorted(sids) == list(range(done["scenarios"]))  # ids 0..N-1, each once
+    assert len(unsent) == done["not_sent"]
+    assert sorted(sids + unsent) == list(range(done["scenarios"] + done["not_sent"]))  # ids 0..N-1, each once
     assert sorted(rids) == sorted(sids) and len(rids) == done["settled"]
     assert len(run["config"]) == 1 and run["config"][0].run_id == run_id
     assert run["status"] and run["status"][-1].state == "done"
@@ -431,7 +492,7 @@ def test_killed_worker_loses_nothing(nodes_factory, test_node, tmp_path, ros_dom
     victim = nodes.start("w_a", "sim_nodes.thermostat_sim", worker_id="w_a", model="surrogate", min_result_subscribers=2)
     nodes.start("w_b", "sim_nodes.thermostat_sim", worker_id="w_b", model="surrogate", min_result_subscribers=2)
     state = {"a_results": 0, "killed_at": None}
-    answered: set[int] = set()
+    answered: set[int] = set()  # a result, or logged as not sent (invalid)
 
     def on_result(msg):
         state["a_results"] += msg.worker == "w_a"
@@ -445,6 +506,8 @@ def test_killed_worker_loses_nothing(nodes_factory, test_node, tmp_path, ros_dom
 
     watcher.create_subscription(topics.RESULT_TYPE, topics.RESULTS, on_result, STREAM)
     watcher.create_subscription(topics.SCENARIO_TYPES["thermostat"], topics.scenarios("thermostat"), on_scenario, STREAM)
+    watcher.create_subscription(topics.SCENARIO_TYPES["thermostat"], topics.not_sent("thermostat"),
+                                lambda m: answered.add(int(m.meta.scenario_id)), topics.NOT_SENT_QOS)
     gen = nodes.start(
         "generator", "ambiegen_ros.nodes.generator", problem="thermostat", algorithm="ga", mode="in_the_loop",
         evaluations=300, population=50, offspring=50, seed=5, run_id="kill-run", min_subscribers=4, min_workers=2,
@@ -466,10 +529,11 @@ def test_killed_worker_loses_nothing(nodes_factory, test_node, tmp_path, ros_dom
     done = _done_line(nodes.log("generator"))
     run = _read_run(mcap)
     sids = {s[0] for s in run["scenarios"]}
+    unsent = {s[0] for s in run["not_sent"]}
     by_sid: dict[int, list] = {}
     for sid, worker, kind, *_ in run["results"]:
         by_sid.setdefault(sid, []).append((worker, kind))
-    assert sids == set(range(300)) and done["scenarios"] == 300
+    assert sids | unsent == set(range(300)) and not sids & unsent and done["scenarios"] == len(sids)
     assert set(by_sid) == sids  # every scenario ended with a result or an explicit timeout
     # what w_a had in hand when it died was sent again, to w_b, and answered there (or timed out)
     lost = {s[0] for s in run["scenarios"] if s[1] == "w_a" and s[2] == 1} - {
@@ -485,7 +549,7 @@ def test_killed_worker_loses_nothing(nodes_factory, test_node, tmp_path, ros_dom
         assert resent.get(sid) == "w_b", f"scenario {sid} was not re-assigned"
         assert any(w == "w_b" or k == SIM_TIMEOUT for w, k in by_sid[sid])
     assert {w for answers in by_sid.values() for w, _ in answers} >= {"w_a", "w_b"}
-    assert done["settled"] == 300 and summarize(mcap, "kill-run")["unresolved"] == []
+    assert done["settled"] == len(sids) and summarize(mcap, "kill-run")["unresolved"] == []
 
 
 # --- 5: malformed scenario messages ------------------------------------------------------------------

@@ -144,7 +144,8 @@ def test_campaign_profile_reaches_every_node_and_every_output(tmp_path, ros_doma
             results[int(msg.scenario_id)] = msg
         else:
             scenarios[int(msg.meta.scenario_id)] = msg.meta
-    assert len(results) == len(scenarios) == 48
+    assert len(results) == len(scenarios) == summary["scenarios_published"]
+    assert summary["scenarios_published"] + summary["not_sent"] == 48  # the invalid ones are never sent
     ids = sorted(scenarios)
     rows = np.stack([refined.codec.to_row(refined.parse(json.loads(scenarios[i].scenario_json))) for i in ids])
     want = refined.evaluate_rows(rows)
@@ -173,6 +174,9 @@ class Graph:
         self.node = create_node("profile_listener", argv=[])
         self.results: list[Any] = []
         self.node.create_subscription(topics.RESULT_TYPE, topics.RESULTS, self.results.append, STREAM)
+        self.not_sent: list[Any] = []  # scenarios the generator logs instead of sending (invalid)
+        self.node.create_subscription(topics.SCENARIO_TYPES["thermostat"], topics.not_sent("thermostat"),
+                                      self.not_sent.append, topics.NOT_SENT_QOS)
 
     def start(self, name: str, module: str, **params: Any) -> None:
         args = [sys.executable, "-m", module, "--ros-args", "-r", f"__node:={name}"]
@@ -192,7 +196,7 @@ class Graph:
         a safety net, not a measure."""
         gen = self.procs["generator"]
         deadline = time.monotonic() + timeout
-        while (gen.poll() is None or len(self.answered()) < answered) and time.monotonic() < deadline:
+        while (gen.poll() is None or len(self.answered() | self.unsent()) < answered) and time.monotonic() < deadline:
             self.node.spin_once(0.05)
         assert gen.poll() == 0, f"generator: exit {gen.poll()}\n{self.log('generator')[-3000:]}"
 
@@ -206,6 +210,9 @@ class Graph:
 
     def answered(self) -> set[int]:
         return {r.scenario_id for r in self.results if r.run_id == GENERATOR["run_id"]}
+
+    def unsent(self) -> set[int]:
+        return {m.meta.scenario_id for m in self.not_sent if m.meta.run_id == GENERATOR["run_id"]}
 
     def close(self) -> None:
         for proc in self.procs.values():
@@ -242,7 +249,7 @@ def test_a_worker_of_another_profile_gets_no_scenario(tmp_path, monkeypatch, ros
     finally:
         graph.close()
     mine = [r for r in graph.results if r.run_id == "profile-run"]
-    assert len({r.scenario_id for r in mine}) == 16
+    assert len({r.scenario_id for r in mine}) + len(graph.unsent()) == 16
     assert {r.worker for r in mine} == {"w_refined"}, "a worker of another profile scored scenarios"
 
 
