@@ -52,7 +52,7 @@ def discovery_scope(requested: str | None, env: dict[str, str]) -> str:
 SIM_MODULES = {problem: f"sim_nodes.{executable}" for problem, executable in SIM_EXECUTABLES.items()}
 STACKS = ("nd",)
 STACK_TOPICS = ("/map", "/initialpose", "/goal_pose", "/scan", "/odom", "/tf", "/tf_static", "/cmd_vel", "/plan",
-                "/collision", "/nd_driver/stall")
+                "/collision", "/nd_driver/stall", "/ambiegen/world/obstacles", "/ambiegen/world/markers")
 """What a robot stack campaign records besides the AmbieGen topics (types and QoS: the publishers')."""
 
 

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .ros import topics
 from .nav2_params import OVERLAY_FILE, for_namespace, merged_params, scale_nav2_rates, top_speed, write_params
 
 
@@ -183,7 +184,8 @@ def nav2_node_parameters(name: str) -> dict:
     return {"use_sim_time": True}
 
 
-NAV2_TOPICS = ("/map", "/initialpose", "/scan", "/odom", "/tf", "/tf_static", "/cmd_vel", "/plan", "/collision")
+NAV2_TOPICS = ("/map", "/initialpose", "/scan", "/odom", "/tf", "/tf_static", "/cmd_vel", "/plan", "/collision",
+               "/ambiegen/world/obstacles", "/ambiegen/world/markers")
 """What a Nav2 campaign records besides the AmbieGen topics: a robot bag (types and QoS: the publishers')."""
 EXTERNAL_START_TIMEOUT = 600.0  # s the adapter waits for a Nav2 the user starts by hand
 
@@ -219,7 +221,8 @@ def nav2_stack(ns: str, mode: str, params: dict, scaled: Path, base: CampaignPla
     world = NodeSpec("robot_world", "robot_world", {
         "time_scale": k, "seed": base.seed, "paired_start": True,
         **{f"{name}_topic": at(f"/{name}") for name in ("map", "initialpose", "cmd_vel", "odom", "scan", "collision",
-                                                         "clock")}}, namespace=ns)
+                                                         "clock")},
+        "obstacles_topic": at(topics.WORLD_OBSTACLES), "markers_topic": at(topics.WORLD_MARKERS)}, namespace=ns)
     nav2 = []
     if mode == "ours":
         files = [str(scaled)]
@@ -234,6 +237,7 @@ def nav2_stack(ns: str, mode: str, params: dict, scaled: Path, base: CampaignPla
         "problem": "robot", "worker_id": f"nav2{suffix}_{base.run_id[-6:]}", "goal_mode": "action", "time_scale": k,
         "map_topic": at("/map"), "initialpose_topic": at("/initialpose"), "odom_topic": at("/odom"),
         "collision_topic": at("/collision"), "plan_topic": at("/plan"), "action_name": at("/navigate_to_pose"),
+        "obstacles_topic": at(topics.WORLD_OBSTACLES),
         "nav2_lifecycle_nodes": lifecycle,
         "nav2_clear_costmaps": ",".join(at(f"/{c}_costmap/clear_entirely_{c}_costmap") for c in ("global", "local")),
         "map_upsample": upsample,
@@ -361,12 +365,16 @@ def plan_summary(plan: CampaignPlan, elapsed: float, exit_codes: dict[str, int |
 def search_line(summary: dict[str, Any]) -> str:
     """How the search's evaluations became published scenarios, so 2000 evaluations next to 3
     scenarios is not read as lost work: in surrogate mode the search runs on the surrogate and
-    only its final suite is published to the sims; in the loop the sims give every F1."""
+    only its final suite is published to the sims; in the loop the sims give every F1, but for the
+    scenarios the problem calls invalid (not sent: F1 0, as the search's constraint says)."""
     evaluations, published = summary["evaluations"], summary.get("scenarios_published", 0)
     plural = "s" * (published != 1)
+    not_sent = summary.get("not_sent", 0)
+    unsent = f", {not_sent} not sent (invalid)" if not_sent else ""
     if summary.get("mode", "surrogate") == "surrogate":
-        return f"{evaluations} evaluations -> suite of {published} scenario{plural} published"
-    return f"{evaluations} evaluations -> {published} scenario{plural} published (in the loop: the sims give every F1)"
+        return f"{evaluations} evaluations -> suite of {published} scenario{plural} published{unsent}"
+    return (f"{evaluations} evaluations -> {published} scenario{plural} published (in the loop: the sims give every "
+            f"F1){unsent}")
 
 
 def summary_table(summary: dict[str, Any]) -> str:
@@ -381,6 +389,10 @@ def summary_table(summary: dict[str, Any]) -> str:
         unresolved = summary.get("unresolved") or []
         rows.append(("scenarios", f"{summary['scenarios_published']} published, {summary['results_received']} results, "
                                   f"{len(unresolved)} unresolved" + (f" (ids {unresolved[:10]})" if unresolved else "")))
+        if summary.get("not_sent"):
+            rules = ", ".join(f"{rule} {n}" for rule, n in list(summary.get("not_sent_rules", {}).items())[:3])
+            rows.append(("not sent", f"{summary['not_sent']}  (the problem calls them invalid, never executed; "
+                                     f"logged with the rule they break: {rules})"))
         kinds = {k: v for k, v in summary.get("outcomes", {}).items() if k != "none"}
         by_kind = ", ".join(f"{k} {v}" for k, v in sorted(kinds.items(), key=lambda kv: (-kv[1], kv[0])))
         rows.append(("failures", f"{summary['failures']}" + (f"  (outcomes: {by_kind})" if by_kind else "")))

@@ -4,6 +4,7 @@
         --profile refined --seed 3 --label random-refined
     python bench/nav2_maps.py --setup ... --maps suite:runs/top/suite.json --count 20 --label top-refined
     python bench/nav2_maps.py --report          # the table and three failure pictures, from the results
+    python bench/nav2_maps.py --picture narrow-s1-dwb-k1-confirm:0:docs/results/nav2/dwb_narrow_slot.png
 
 Each map runs through ``robot_world`` (free-running at ``--time-scale``, ``/clock``), Nav2 with
 ``--params-file`` (default ``config/nav2/pioneer_navfn_dwb.yaml``; another file gets the overlay
@@ -205,7 +206,8 @@ def run_batch(args) -> int:
                    "failure_kind": res.failure_kind, "failed": res.failed, "detail": res.detail,
                    "nav2_status": m.get("nav2_status"), "nav2_error_code": m.get("nav2_error_code"),
                    "nav2_error_msg": m.get("nav2_error_msg"), "nav2_recoveries": m.get("nav2_recoveries"),
-                   "plans": m.get("plans"),
+                   "contacts_not_at_fault": m.get("contacts_not_at_fault"),
+                   "reference_check": m.get("reference_check"), "plans": m.get("plans"),
                    "plan_length_m": m.get("plan_length_m"), "time": m.get("time"), "wall_s": round(wall, 2),
                    "failure_point": list(res.failure_point) if res.failure_point is not None else None,
                    "trajectory_every_10": traj, "mcap": str(mcap), "wall_start_ns": w0, "wall_end_ns": time.time_ns(),
@@ -322,11 +324,9 @@ def known_facts(row: dict, problem) -> dict:
 
 def report(args) -> int:
     from ambiegen_ros.problems import get_problem
-    from ambiegen_ros.ros.runlog import iter_messages
     from ambiegen_ros.sims import known_failures
     from ambiegen_ros.sims.outcome import Outcome
     from ambiegen_ros.sims.signature import DistinctFailures, signature
-    from ambiegen_ros.viz.execution import save_execution_plot
 
     rows = read_rows(RUNS)
     entries = known_failures.load(REPO / "config" / "nav2" / "known_failures.yaml")
@@ -386,19 +386,55 @@ def report(args) -> int:
             chosen.append(f)
     chosen += [f for f in failures if f not in chosen]
     for i, (_, r, problem, out) in enumerate(chosen[:3]):
-        sc = problem.parse(r["scenario"])
-        traj = np.asarray(r["trajectory_every_10"] or [], dtype=float).reshape(-1, 2)
-        out.trajectory, out.timeline = traj, {"t": np.linspace(0.0, float(r["time"] or 0.0), len(traj))}
-        plan = None
-        if Path(r["mcap"]).exists():
-            for _, _, t, msg in iter_messages(r["mcap"], {"/plan"}):
-                if r["wall_start_ns"] <= t <= r["wall_end_ns"]:
-                    plan = np.array([[q.pose.position.x, q.pose.position.y] for q in msg.poses])
-        path = save_execution_plot(problem, sc, out, RESULTS / f"failure_{i + 1}.png", plan=plan,
-                                   system=f"Nav2 (time scale {r['time_scale']:g})")
+        path = draw_row(r, problem, out, RESULTS / f"failure_{i + 1}.png")
         lines.append(f"![{r['failure_kind']}]({path.name}) {r['label']}: {r['detail']}")
     (RESULTS / "README.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
+    return 0
+
+
+def timed_path(r: dict) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """A row's path (every 10th odometry pose) and the simulated time of each pose: odometry comes
+    at a fixed rate (50 Hz: (poses - 1) x 10 / time is 49.6-50.0 on every row measured), so the poses
+    are spread evenly from 0 to the run's ``time``, and a picture's colour bar of seconds ends at
+    the run's duration (not at the count of poses)."""
+    traj = np.asarray(r["trajectory_every_10"] or [], dtype=float).reshape(-1, 2)
+    return traj, {"t": np.linspace(0.0, float(r["time"] or 0.0), len(traj))}
+
+
+def draw_row(r: dict, problem, out, path: Path) -> Path:
+    """One row's run as a picture: the map, its path coloured by simulated time, Nav2's last plan
+    (read from the row's bag, when it is on this machine) and where it failed."""
+    from ambiegen_ros.ros.runlog import iter_messages
+    from ambiegen_ros.viz.execution import save_execution_plot
+
+    out.trajectory, out.timeline = timed_path(r)
+    plan = None
+    if Path(r["mcap"]).exists():
+        for _, _, t, msg in iter_messages(r["mcap"], {"/plan"}):
+            if r["wall_start_ns"] <= t <= r["wall_end_ns"]:
+                plan = np.array([[q.pose.position.x, q.pose.position.y] for q in msg.poses])
+    return save_execution_plot(problem, problem.parse(r["scenario"]), out, path, plan=plan,
+                               system=f"Nav2 (time scale {r['time_scale']:g})")
+
+
+def picture(spec: str) -> int:
+    """``--picture LABEL:K:FILE``: the K-th failed run (0-based, in the order recorded) of the batch
+    LABEL drawn to FILE, from ``runs.jsonl`` alone (a write-up's picture, redrawn without its bag)."""
+    from ambiegen_ros.problems import get_problem
+    from ambiegen_ros.sims.outcome import Outcome
+
+    label, k, file = spec.split(":", 2)
+    failed = [r for r in read_rows(RUNS) if r["label"] == label and r["failed"]]
+    if not failed or int(k) >= len(failed):
+        print(f"--picture: batch {label!r} has {len(failed)} failed runs", file=sys.stderr)
+        return 2
+    r = failed[int(k)]
+    problem = get_problem("robot", {**r.get("problem_config", {}), "profile": r["profile"]})
+    point = r["failure_point"] or (r["trajectory_every_10"] or [None])[-1]
+    out = Outcome(objectives={}, failed=True, failure_kind=r["failure_kind"], detail=r["detail"],
+                  failure_point=tuple(point) if point else None)
+    print(draw_row(r, problem, out, Path(file)))
     return 0
 
 
@@ -430,10 +466,14 @@ def main(argv: list[str] | None = None) -> int:
                          "behind the robot, as the robots Jazzy's defaults were tuned on); use a label of its own")
     ap.add_argument("--domain-id", type=int, default=7, help="outside the test suite's pool (10-101)")
     ap.add_argument("--report", action="store_true")
+    ap.add_argument("--picture", metavar="LABEL:K:FILE", help="draw the K-th failed run of batch LABEL to FILE "
+                    "(from runs.jsonl; Nav2's plan only when the row's bag is on this machine)")
     ap.add_argument("--results", default="", help="the JSONL file appended to (default: the committed one)")
     args = ap.parse_args(argv)
     if args.results:
         globals()["RUNS"] = Path(args.results).resolve()
+    if args.picture:
+        return picture(args.picture)
     return report(args) if args.report else run_batch(args)
 
 

@@ -108,13 +108,25 @@ def measure(args, mcap: Path, code, wall: float | None) -> dict:
     }
 
 
-def report() -> int:
+def scenario_space(config: str) -> str:
+    """What a run's scenarios are drawn from: ``hazards`` (issue 48's scenarios) or the paper's
+    ``walls``; a search is compared with random runs of its own space."""
+    import yaml
+
+    path = REPO / config.split("@")[0].strip()  # a row may name the file at a commit: "FILE@abc (note)"
+    data = (yaml.safe_load(path.read_text()) or {}) if path.is_file() else {}
+    return str((data.get("problem_config") or {}).get("scenario", "walls"))
+
+
+def report(path: Path | None = None) -> int:
     from ambiegen_ros.core.stats import greater_exact
 
-    rows = read_rows(OUT)
-    for controller in sorted({r["controller"] for r in rows}):
-        mine = [r for r in rows if r["controller"] == controller]
-        print(f"## {controller}")
+    rows = read_rows(path or OUT)
+    for controller, space in sorted({(r["controller"], scenario_space(r.get("config", DEFAULT_CONFIG)))
+                                     for r in rows}):
+        mine = [r for r in rows if r["controller"] == controller
+                and scenario_space(r.get("config", DEFAULT_CONFIG)) == space]
+        print(f"## {controller}, {space} scenarios")
         by = {}
         for r in mine:
             by.setdefault((r["algorithm"], f'{r["mode"]}, {r.get("config", DEFAULT_CONFIG)}'), []).append(r)
@@ -153,16 +165,18 @@ def main(argv: list[str] | None = None) -> int:
                          "then the campaign is stopped and measured as it stands")
     ap.add_argument("--domain-id", type=int, default=9, help="outside the test suite's pool (10-101)")
     ap.add_argument("--report", action="store_true")
+    ap.add_argument("--results", type=Path, default=None, help=f"the JSON-lines file rows go to (default {OUT.name}; "
+                                                            "another for a trial run)")
     ap.add_argument("--measure", type=Path, metavar="MCAP",
                     help="append the row of a campaign already recorded (e.g. one this bench stopped waiting for), "
                          "from its bag, with the controller, algorithm, mode, config and seed given here")
     args = ap.parse_args(argv)
     if args.report:
-        return report()
+        return report(args.results)
     if args.measure:
         if not args.measure.is_file():
             raise SystemExit(f"{args.measure}: no such bag")
-        return append(measure(args, args.measure, code=None, wall=None))
+        return append(measure(args, args.measure, code=None, wall=None), args.results)
     import jazzy_env as je
 
     os.environ[je.SETUP_VAR] = args.setup
@@ -170,11 +184,11 @@ def main(argv: list[str] | None = None) -> int:
     if "skip" in info:
         raise SystemExit(info["skip"])
     logs = Path(tempfile.mkdtemp(prefix="nav2_search_"))
-    return append(run_one(args, je.working_tree_install(logs / "ws"), logs))
+    return append(run_one(args, je.working_tree_install(logs / "ws"), logs), args.results)
 
 
-def append(row: dict) -> int:
-    append_row(OUT, row)
+def append(row: dict, path: Path | None = None) -> int:
+    append_row(path or OUT, row)
     print(json.dumps({key: row[key] for key in ("controller", "algorithm", "mode", "seed", "exit", "wall_s", "nav2_runs",
                                                 "nav2_hours", "failures", "known_failures", "distinct_new_failures",
                                                 "kinds", "early_verdicts", "near_misses")}), flush=True)

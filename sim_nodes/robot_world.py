@@ -46,7 +46,9 @@ from ambiegen_ros.core.config import ConfigError
 from ambiegen_ros.ros import conversions
 from ambiegen_ros.ros.qos import DEFAULT, LATCHED, Qos
 from ambiegen_ros.ros.transport import create_node
+from ambiegen_ros.ros import topics
 from ambiegen_ros.sims.hosted_world import HostedWorld
+from ambiegen_ros.sims.obstacles import Obstacles
 from ambiegen_ros.sims.robot import WORLD_FIELDS, RobotSimConfig
 from ambiegen_ros.nodes import run_node
 from sim_nodes.worker import sim_options
@@ -70,8 +72,13 @@ class RobotWorldNode:
             ("odom", "/odom", "nav_msgs/Odometry out"),
             ("scan", "/scan", "sensor_msgs/LaserScan out"),
             ("collision", "/collision", "diagnostic_msgs/DiagnosticArray out, stamped: ERROR while touching a wall, "
-                                        "else OK ('' = none)"),
-            ("clock", "/clock", "rosgraph_msgs/Clock out ('' = none)"))}
+                                        "box or post or after driving into a person, WARN when a person walked "
+                                        "into the robot (not its fault), else OK ('' = none)"),
+            ("clock", "/clock", "rosgraph_msgs/Clock out ('' = none)"),
+            ("obstacles", topics.WORLD_OBSTACLES, "std_msgs/String in: JSON of what is in the world but not in the "
+                                                  "map ('' = none; with paired_start a scenario waits for it too)"),
+            ("markers", topics.WORLD_MARKERS, "visualization_msgs/MarkerArray out: the unmapped obstacles and "
+                                              "people, with every scan ('' = none)"))}
         self.frames = {name: p(f"{name}_frame", default) for name, default in (
             ("map", "map"), ("odom", "odom"), ("base", "base_link"), ("scan", "base_scan"))}
         stamped = self.stamped = p("cmd_vel_stamped", False, "velocity commands are geometry_msgs/TwistStamped "
@@ -88,6 +95,8 @@ class RobotWorldNode:
                                                      "them so); false: each resets the world when it arrives"))
         self._pending_map: tuple | None = None  # paired_start: (stamp, grid, resolution, origin)
         self._pending_pose: tuple | None = None  # paired_start: (stamp, x, y, yaw)
+        self._pending_obstacles: tuple | None = None  # (stamp, Obstacles): for the next map
+        self.with_obstacles = bool(topic["obstacles"])
         cfg = sim_options(n, RobotSimConfig, WORLD_FIELDS, defaults={"dt": 0.02})
         for name, value in (("time_scale", self.time_scale), ("cmd_timeout", cmd_timeout)):
             if not value >= 0:
@@ -113,6 +122,11 @@ class RobotWorldNode:
                               if topic["collision"] else None)
         self.pub_clock = (n.create_publisher("rosgraph_msgs/msg/Clock", topic["clock"], CLOCK)
                           if topic["clock"] else None)
+        self.pub_markers = (n.create_publisher("visualization_msgs/msg/MarkerArray", topic["markers"], DEFAULT)
+                            if topic["markers"] else None)
+        if topic["obstacles"]:
+            n.create_subscription("std_msgs/msg/String", topic["obstacles"], self.on_obstacles, LATCHED)
+        self.contacts_seen = 0  # not-at-fault contacts reported so far in this run
         n.create_subscription("nav_msgs/msg/OccupancyGrid", topic["map"], self.on_map, LATCHED)
         n.create_subscription("geometry_msgs/msg/PoseWithCovarianceStamped", topic["initialpose"], self.on_initialpose,
                               DEFAULT)
@@ -132,6 +146,17 @@ class RobotWorldNode:
                       f"{cfg.dt:g} s, scans at {scan_rate:g} Hz on {topic['scan']}, commands from {topic['cmd_vel']}")
 
     # --- inputs ---------------------------------------------------------------------------------
+    def on_obstacles(self, msg: Any) -> None:
+        """What the next scenario's world holds besides its map (the map stamped alike)."""
+        stamp, data = conversions.obstacles_from_message(msg)  # bad JSON raises: dropped, counted
+        self._pending_obstacles = (stamp, Obstacles.from_dict(data))
+        if self.paired:
+            self._start_paired()
+
+    def _obstacles_for(self, stamp: int) -> Obstacles | None:
+        pending = self._pending_obstacles
+        return pending[1] if pending is not None and pending[0] == stamp else None
+
     def on_map(self, msg: Any) -> None:
         info = msg.info
         grid = conversions.grid_from_message(msg)
@@ -140,7 +165,9 @@ class RobotWorldNode:
                                  (float(info.origin.position.x), float(info.origin.position.y)))
             self._start_paired()
             return
-        self.world.load_map(grid, float(info.resolution), (float(info.origin.position.x), float(info.origin.position.y)))
+        self.contacts_seen = 0
+        self.world.load_map(grid, float(info.resolution), (float(info.origin.position.x), float(info.origin.position.y)),
+                            self._obstacles_for(conversions.stamp_ns(msg.header)))
         self.node.logger.info(f"map {info.width}x{info.height} at {info.resolution:g} m: world reset (run {self.world.runs})")
         self._publish_state(scan=True)
 
@@ -164,9 +191,13 @@ class RobotWorldNode:
         m, q = self._pending_map, self._pending_pose
         if m is None or q is None or m[0] != q[0]:
             return
+        obstacles = self._obstacles_for(m[0])
+        if self.with_obstacles and obstacles is None:  # its obstacles are on their way
+            return
         self._pending_map = self._pending_pose = None
+        self.contacts_seen = 0
         self.world.teleport(q[1], q[2], q[3])
-        self.world.load_map(m[1], m[2], m[3])
+        self.world.load_map(m[1], m[2], m[3], obstacles)
         self.node.logger.info(f"map {m[1].shape[1]}x{m[1].shape[0]} at {m[2]:g} m with the start ({q[1]:.2f}, {q[2]:.2f}, "
                               f"{math.degrees(q[3]):.0f} deg): world reset (run {self.world.runs})")
         self._publish_state(scan=True)
@@ -231,10 +262,21 @@ class RobotWorldNode:
                                                         self.cfg.laser_range, self.scan_period)
             self.pub_scan.publish(self.last_scan_msg)
             self.last_scan_wall, self.scan_stamp = time.monotonic(), stamp
-        if w.ready and self.pub_collision is not None and (scan or w.contact != self.last_collision):
-            self.pub_collision.publish(conversions.status_report(make, stamp, "collision", "touching a wall" if w.contact
-                                                                 else "", f["base"]))
-            self.last_collision = w.contact
+        if scan and w.ready and self.pub_markers is not None and w.world.obstacles is not None:
+            self.pub_markers.publish(conversions.obstacle_markers(make, stamp, w.obstacles_in_map(), w.world.t,
+                                                                  f["map"]))
+        contact = w.contact or (w.world is not None and w.world.person_contact is not None)
+        news = w.world is not None and w.world.contacts_not_at_fault > self.contacts_seen
+        if w.ready and self.pub_collision is not None and (scan or contact != self.last_collision or news):
+            problem = ""
+            if contact:
+                problem = w.world.person_contact or "touching a wall, box or post"
+            note = ""
+            if news:
+                self.contacts_seen = w.world.contacts_not_at_fault
+                note = f"a person walked into the robot (not its fault; {self.contacts_seen} so far)"
+            self.pub_collision.publish(conversions.status_report(make, stamp, "collision", problem, f["base"], note))
+            self.last_collision = contact
 
     def _resend(self) -> None:
         """Lockstep: the unanswered scan and its odometry again (same stamps: nothing new happened)."""

@@ -83,7 +83,7 @@ from typing import Any
 import numpy as np
 
 from ambiegen_ros.core.config import ConfigError
-from ambiegen_ros.ros import conversions
+from ambiegen_ros.ros import conversions, topics
 from ambiegen_ros.ros.qos import DEFAULT, LATCHED, STREAM, Qos
 from ambiegen_ros.sims import Outcome, known_failures, reference
 from ambiegen_ros.sims.full_model import FullModelExecutor, sim_config
@@ -159,6 +159,8 @@ class Job:
     nav2_first_abort: str = ""  # Nav2 refused the first goal at once: what it said (the goal went again)
     nav2_refused_ns: int = 0  # the node's ROS time (sim time under /clock) of that refusal
     nav2_resend_wait_s: float | None = None  # ROS-clock s from that refusal to the goal's going again
+    contacts_not_at_fault: int = 0  # people who walked into the robot (the world's WARNs): recorded, not failures
+    before: Any = None  # the reference's static check (passed), the word on a failure without a reference run
 
     @property
     def nav2_resend_due(self) -> bool:
@@ -258,7 +260,12 @@ class SutAdapter:
                                               "level ERROR = it gave up, message = why ('' = none)"),
                 "plan": p("plan_topic", "", "optional nav_msgs/Path: the stack's global plan, counted after the goal "
                                             "(Nav2: /plan; '' = none)"),
+                "obstacles": p("obstacles_topic", topics.WORLD_OBSTACLES,
+                               "std_msgs/String out (JSON), stamped like the map: what the world holds besides the "
+                               "map, for robot_world (hazards scenarios; '' = none)"),
             }
+            self.pub_obstacles = (n.create_publisher("std_msgs/msg/String", self.topics["obstacles"], LATCHED)
+                                  if self.topics["obstacles"] else None)
             self.pub_map = n.create_publisher("nav_msgs/msg/OccupancyGrid", self.topics["map"], LATCHED)
             self.pub_initialpose = n.create_publisher("geometry_msgs/msg/PoseWithCovarianceStamped",
                                                       self.topics["initialpose"], DEFAULT)
@@ -324,6 +331,7 @@ class SutAdapter:
             outcome.metrics = {"outcome": "invalid", "valid": False, "reason": reason}
             self.publish(run_id, sid, outcome)
             return
+        verdict = None
         if self.reference:
             verdict = reference.before(self.problem, scenario, self.oracle)
             if verdict is not None and not verdict.passed:  # never sent: no system could pass it
@@ -332,7 +340,7 @@ class SutAdapter:
                 self.publish(run_id, sid, outcome)
                 self.node.logger.info(f"scenario {sid}: invalid_test ({outcome.detail})")
                 return
-        self.queue.append(Job(run_id, sid, scenario, msg, reason, valid))
+        self.queue.append(Job(run_id, sid, scenario, msg, reason, valid, before=verdict))
 
     def idle(self) -> None:
         if self.job is None and self.queue:
@@ -385,7 +393,11 @@ class SutAdapter:
                 job.limit_sim = self.oracle.timeout  # the floor; the route's own limit once the start is seen
                 s = msg.start.pose
                 job.start_pose = (float(s.position.x), float(s.position.y), conversions.yaw_of(s.orientation))
-                if self.start_heading == "route":  # facing the route's first leg, as the full model starts
+                hazards = bool(getattr(self.problem, "hazards", False))
+                if self.pub_obstacles is not None:  # the world's unmapped obstacles and people, stamped like the map
+                    unmapped = self.problem.environment(job.scenario).unmapped if hazards else {}
+                    self.pub_obstacles.publish(conversions.obstacles_message(make, stamp, unmapped or {}))
+                if self.start_heading == "route" and not hazards:  # facing the route's first leg, as the full model starts
                     route = job.judge.start(job.start_pose[0], job.start_pose[1])
                     if len(route) > 1:
                         heading = math.atan2(route[1, 1] - route[0, 1], route[1, 0] - route[0, 0])
@@ -463,8 +475,11 @@ class SutAdapter:
         self.samples.append((conversions.stamp_ns(msg.header), time.monotonic_ns(), temperature))
 
     def on_status(self, name: str, msg: Any) -> None:
-        """A stamped status on the stall or collision topic: a heartbeat, or the stream's event."""
+        """A stamped status on the stall or collision topic: a heartbeat, or the stream's event (a
+        WARN on the collision topic: a person walked into the robot, counted, not a failure)."""
         if self.job is not None:
+            if name == "collision" and conversions.status_note(msg) is not None:
+                self.job.contacts_not_at_fault += 1
             stamp, problem = conversions.status_problem(msg)
             self.order.message(name, time.monotonic_ns() if self.stamp_clock == "receive" else stamp, problem)
 
@@ -623,7 +638,8 @@ class SutAdapter:
         if self.problem_name == "robot":
             collision = self.topics["collision"]
             job.judge.add(t, x, y, yaw, stall=[e.get("stall") for e in events],
-                          collision=[f"reported on {collision}" if "collision" in e else None for e in events])
+                          collision=[f"reported on {collision}: {e['collision']}" if "collision" in e else None
+                                     for e in events])
             if math.isfinite(job.judge.time_limit):
                 job.limit_sim = max(job.limit_sim, job.judge.time_limit)
         else:
@@ -653,13 +669,16 @@ class SutAdapter:
                 and outcome.metrics.get("stall_cause") == gave_up.event[1]:
             outcome.detail = f"{outcome.detail} (the system under test gave up, on {self.topics['stall']})"
         if self.reference and outcome.failed:  # does the in-process reference pass the same scenario?
-            outcome = reference.certify(outcome, reference.after(self.problem, job.scenario, self.oracle, outcome))
+            outcome = reference.certify(outcome, reference.after(self.problem, job.scenario, self.oracle, outcome)
+                                        or job.before)
         if self.known_failures and outcome.failed:
             outcome = known_failures.mark(outcome, self.known_failures)
         wall = time.monotonic() - job.started
         outcome.elapsed_sec = wall
         outcome.metrics = {**outcome.metrics, "valid": job.valid, "reason": job.reason, "wall_s": wall,
                            "time_scale": self.time_scale, "stamp_clock": self.stamp_clock}
+        if self.problem_name == "robot" and getattr(self.problem, "hazards", False):
+            outcome.metrics["contacts_not_at_fault"] = job.contacts_not_at_fault
         self.publish(job.run_id, job.scenario_id, outcome)
         self.node.logger.info(f"scenario {job.scenario_id}: {outcome.failure_kind} ({outcome.detail}) in {wall:.2f} s")
 

@@ -104,6 +104,7 @@ def test_the_bag_holds_both_failures_with_their_streams(bag):
         assert entry.outcome is not None and entry.outcome.failure_kind == "stall", entry.outcome
         run = read_run(index, sid)
         assert len(run.poses) > 50 and run.scans and run.plans
+        assert run.markers == []  # maps without hazards: nothing on /ambiegen/world/markers to draw
         assert np.hypot(*(run.poses[0, 1:3] - run.start)) < 0.5  # at the scenario's start, not the last run's end
         assert np.all(np.diff(run.poses[:, 0]) >= 0)
         assert run.t_verdict is not None and run.t_verdict <= run.poses[-1, 0] + 0.5
@@ -176,7 +177,8 @@ def test_show_says_what_a_bag_lacks(tmp_path):
 
 def test_the_foxglove_layout_shows_a_robot_bags_topics():
     """config/foxglove/robot_bag_layout.json: a layout as Foxglove exports it (panels by id, a split
-    tree of those ids) whose 3D panel shows the recorded robot topics in the map frame."""
+    tree of those ids) whose 3D panel shows the recorded robot topics in the map frame, the world's
+    unmapped obstacles and people (issue 48) among them."""
     import json
 
     layout = json.loads((REPO / "config" / "foxglove" / "robot_bag_layout.json").read_text())
@@ -189,7 +191,7 @@ def test_the_foxglove_layout_shows_a_robot_bags_topics():
     (three_d,) = [cfg for name, cfg in panels.items() if name.startswith("3D!")]
     assert three_d["followTf"] == "map"
     shown = {topic for topic, cfg in three_d["topics"].items() if cfg["visible"]}
-    assert {"/map", "/scan", "/plan", "/odom"} <= shown <= set(STACK_TOPICS)
+    assert {"/map", "/scan", "/plan", "/odom", "/ambiegen/world/markers"} <= shown <= set(STACK_TOPICS)
     paths = [cfg.get("topicPath", "") for cfg in panels.values()]
     paths += [p["value"] for cfg in panels.values() for p in cfg.get("paths", [])]
     assert any(path.startswith("/ambiegen/results") for path in paths)
@@ -303,11 +305,17 @@ def test_nav2_search_report_tests_each_side_against_random_from_three_runs(tmp_p
 
     rows = [row("dwb", "random", 0) for _ in range(3)] + [row("dwb", "nsga2", d) for d in (2, 1, 2)]
     rows += [row("mppi", "random", 0), row("mppi", "random", 0), row("mppi", "nsga2", 3), row("mppi", "nsga2", 3)]
+    # runs on hazards scenarios are compared with random hazards runs only (bench/nav2_search.scenario_space)
+    hazards = [{**row("mppi", "random", 0), "config": "config/robot_hazards.yaml"} for _ in range(3)]
+    hazards += [{**row("mppi", "nsga2", d), "config": "config/robot_hazards_threat.yaml"} for d in (1, 2, 3)]
+    rows += hazards
     monkeypatch.setattr(nav2_search, "OUT", tmp_path / "nav2_search.jsonl")
     nav2_search.OUT.write_text("".join(json.dumps(r) + "\n" for r in rows))
     assert nav2_search.report() == 0
     out = capsys.readouterr().out
-    dwb, mppi = out.split("## mppi")
+    dwb, rest = out.split("## mppi, hazards scenarios")
+    hazards_part, mppi = rest.split("## mppi, walls scenarios")
     assert "nsga2 (in_the_loop, c.yaml) > random, 3 against 3 runs: one-sided Mann-Whitney U = 9, exact p = 0.050" in dwb
     assert "(a hint: under 10 runs a side)" in dwb
     assert "> random" not in mppi  # 2 runs a side: no test
+    assert "config/robot_hazards_threat.yaml) > random, 3 against 3 runs: one-sided Mann-Whitney U = 9" in hazards_part

@@ -111,11 +111,14 @@ def cmd_show(args: argparse.Namespace) -> int:
         return 0
     problem, scenario = load_scenario(args, str(target))
     output = Path(args.output or target.with_suffix(".png"))
+    if args.set and not args.execute:
+        raise BadInput("--set: simulator options are for --execute")
     if args.execute:
         from ..sims.full_model import full_model_executor
+        from ..sims.options import parse_options
         from ..viz.execution import save_execution_plot
 
-        outcome = full_model_executor(problem).execute(scenario, seed=args.seed)
+        outcome = full_model_executor(problem, **parse_options(args.set)).execute(scenario, seed=args.seed)
         save_execution_plot(problem, scenario, outcome, output)
         print(f"{output}  [{outcome.verdict}]")
         return 0
@@ -128,8 +131,8 @@ def show_bag(args: argparse.Namespace, path: Path) -> int:
     """One robot scenario of a robot bag as a GIF/MP4; without --scenario, the bag's scenarios (exit 2)."""
     from ..ros.robot_bag import read_index, read_run
 
-    if args.execute or args.config or args.profile:
-        raise BadInput("--execute, --config and --profile are for a scenario file; a bag is drawn as recorded")
+    if args.execute or args.config or args.profile or args.set:
+        raise BadInput("--execute, --set, --config and --profile are for a scenario file; a bag is drawn as recorded")
     output = Path(args.output) if args.output else None
     if args.scenario is not None and output is not None:  # a wrong -o fails before the bag is read
         _check_output(output, args.overwrite)
@@ -216,6 +219,8 @@ def register(sub) -> None:
                    "(default RUN_scenario_ID.gif); an existing file is refused")
     p.add_argument("--execute", action="store_true", help="run the scenario on its full-model simulator and draw the trajectory")
     p.add_argument("--seed", type=int, default=0, help="simulator seed for --execute (default 0)")
+    p.add_argument("--set", action="append", default=[], metavar="OPTION=VALUE",
+                   help="--execute: simulator option, as for `ambiegen execute` (repeatable)")
     p.add_argument("--run", metavar="RUN", help="a bag with several runs (a bench/nav2_maps.py batch logs a run "
                    "per map): the run whose scenarios are listed or animated (default: the one run that has "
                    "--scenario ID, else the first)")

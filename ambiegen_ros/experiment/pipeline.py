@@ -423,14 +423,23 @@ def full_model_run(problem, settings, executor, fm: dict[str, Any], seed: int,
             nxt = queue.next_time()
             if nxt is None and not search.exhausted:  # nothing left: the (idle) search runs now
                 search.t = max(search.t, now)
-                search.step()
-                continue
-            if nxt is None:
+                if search.step():
+                    continue
+                # it bred nothing worth executing (a system it cannot find a failure of): the executor
+                # runs a random sample, or waits out the step; either way its clock moves on
+                drawn = None if fill is None else fill.draw(lambda row: tally.skip(row, now))
+                if drawn is None:
+                    waited += search.t - now
+                    free[e] = search.t
+                    continue
+                cand = Candidate(drawn[0], drawn[1], now, -1)
+            elif nxt is None:
                 free[e] = math.inf  # the search can breed nothing new: this executor is done
                 continue
-            waited += nxt - now
-            free[e] = nxt
-            continue
+            else:
+                waited += nxt - now
+                free[e] = nxt
+                continue
         k = tally.dispatch(cand.row)
         sim_seed = int(np.random.SeedSequence([seed, k]).generate_state(1)[0])
         outcome = executor.execute(problem.codec.from_row(cand.row), seed=sim_seed)

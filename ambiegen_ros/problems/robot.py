@@ -66,7 +66,8 @@ HORIZONTAL, VERTICAL = 0, 1
 DIAGONAL_RULES = ("both_free", "one_free", "always")
 INFLATION_RULES = ("overlap", "centre")  # how the robot radius blocks cells (see ``inflation_footprint``)
 INFLATION_RULE = {"refined": "overlap", "replication": "centre"}
-OBJECTIVES = ("route", "narrow")  # what F1 measures (``RobotConfig.objective``)
+OBJECTIVES = ("route", "narrow", "threat")  # what F1 measures (``RobotConfig.objective``; threat: hazards only)
+SCENARIO_KINDS = ("walls", "hazards")  # ``RobotConfig.scenario``: the paper's map, or issue 48's hazards
 LOOP_OBJECTIVES = ("time", "pace", "time_share")  # what F1 of an execution measures in the loop (``RobotConfig.loop_objective``)
 ENGINES = ("auto", "numba", "numpy")  # batch planner: numba when importable, else scipy
 NO_PATH = "no path from start to goal"
@@ -156,6 +157,17 @@ class RobotConfig:
     # "time_share" = the time over the time limit (1 on a failure): measured, and it climbs route length
     loop_objective: str = "time"
     profile: str = DEFAULT_PROFILE  # replication | refined (see the module docstring)
+    # scenario kind (issue 48): "walls" = the paper's map; "hazards" = walls plus the start and goal
+    # poses, unmapped boxes and posts and walking people (``problems.robot_hazards``; refined only)
+    scenario: str = "walls"
+    start_area: tuple | None = None  # hazards: ((x0, y0), (x1, y1)) cells the start lies in; None = start +- 2
+    goal_area: tuple | None = None  # hazards: the goal's area; None = goal +- 2 cells
+    max_hazards: int = 6  # hazards: boxes, posts and people per scenario, at most
+    box_side: tuple = (0.3, 1.0)  # hazards: a box's side [m], min and max
+    post_diameter: tuple = (0.05, 0.2)  # hazards: a thin post's diameter [m]
+    person_radius: tuple = (0.2, 0.35)  # hazards: a person's radius [m]
+    person_reach: float = 3.0  # hazards: a person walks this far on each side of its point on the route [m]
+    clear_of_ends: float = 0.6  # hazards: obstacles and standing people keep this far from start and goal [m]
 
     def __post_init__(self):
         check_profile(self.profile)
@@ -187,6 +199,12 @@ class RobotConfig:
             raise ScenarioError("config.free_band", "must leave interior cells for walls", f"0..{self.map_size - 3}")
         if not 0.0 <= self.type_p_stay <= 1.0:
             raise ScenarioError("config.type_p_stay", "must be a probability", "[0, 1]")
+        if self.scenario not in SCENARIO_KINDS:
+            raise ScenarioError("config.scenario", f"unknown scenario kind {self.scenario!r}", "|".join(SCENARIO_KINDS))
+        if self.scenario == "hazards":
+            self._check_hazards()
+        elif self.objective == "threat":
+            raise ScenarioError("config.objective", "threat scores hazards", "scenario: hazards")
         # YAML/JSON give lists; keep the dataclass hashable and the cells integral.
         object.__setattr__(self, "start", tuple(int(v) for v in self.start))
         object.__setattr__(self, "goal", tuple(int(v) for v in self.goal))
@@ -195,6 +213,33 @@ class RobotConfig:
             if not (0 < x < self.map_size - 1 and 0 < y < self.map_size - 1):
                 raise ScenarioError(f"config.{name}", f"({x}, {y}) is not an interior cell",
                                     f"1..{self.map_size - 2}")
+
+    def _check_hazards(self) -> None:
+        if self.profile != "refined":
+            raise ScenarioError("config.scenario", "hazards scenarios need the refined profile", "profile: refined")
+        if not 0 <= int(self.max_hazards) <= 20:
+            raise ScenarioError("config.max_hazards", f"{self.max_hazards}", "0..20")
+        for name in ("start_area", "goal_area"):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            try:
+                (x0, y0), (x1, y1) = value
+                cells = tuple(tuple(int(v) for v in c) for c in value)
+            except (TypeError, ValueError):
+                raise ScenarioError(f"config.{name}", f"expected [[x0, y0], [x1, y1]], got {value!r}") from None
+            (x0, y0), (x1, y1) = cells
+            if not (1 <= x0 <= x1 <= 48 and 1 <= y0 <= y1 <= 48):
+                raise ScenarioError(f"config.{name}", f"{cells} is not a box of interior cells", "1 <= x0 <= x1 <= 48")
+            object.__setattr__(self, name, cells)
+        for name in ("box_side", "post_diameter", "person_radius"):
+            lo_hi = tuple(float(v) for v in getattr(self, name))
+            if len(lo_hi) != 2 or not 0 < lo_hi[0] <= lo_hi[1]:
+                raise ScenarioError(f"config.{name}", f"{getattr(self, name)!r}", "[min, max] with 0 < min <= max")
+            object.__setattr__(self, name, lo_hi)
+        for name in ("person_reach", "clear_of_ends"):
+            if not getattr(self, name) > 0:
+                raise ScenarioError(f"config.{name}", "must be > 0")
 
     def for_profile(self, profile: str) -> "RobotConfig":
         """This config under another profile: fields still at this profile's default follow the new one.
@@ -212,6 +257,10 @@ def keep_out_mask(config: RobotConfig, radius: int | None = None) -> np.ndarray:
     """(H, W) True on the start/goal keep-out squares, where walls are never placed (Chebyshev
     ``radius`` cells around each; default ``keep_out``)."""
     n, k = config.map_size, config.keep_out if radius is None else radius
+    if config.scenario == "hazards":  # the start and goal may lie anywhere in their areas
+        from .robot_hazards import areas_mask
+
+        return areas_mask(config, k)
     ys, xs = np.mgrid[0:n, 0:n]
     mask = np.zeros((n, n), dtype=bool)
     for cx, cy in (config.start, config.goal):
@@ -576,6 +625,11 @@ class RobotMap:
     path: list[tuple[int, int]] = field(default_factory=list)
     path_length: float = 0.0
     reachable: bool = False
+    # hazards scenarios (issue 48): the poses' yaw [rad] (None: the paper's map, facing the route) and
+    # what is in the world but not in ``grid`` (``sims.obstacles.Obstacles.to_dict`` form)
+    start_yaw: float | None = None
+    goal_yaw: float | None = None
+    unmapped: dict = field(default_factory=dict)
 
     def to_metres(self, cell: Sequence[int]) -> tuple[float, float]:
         return ((cell[0] + 0.5) * self.resolution, (cell[1] + 0.5) * self.resolution)
@@ -622,13 +676,39 @@ class RobotProblem(Problem):
         super().__init__(config, **overrides)
         if self.config.objective == "narrow":
             self.f1_label = "narrow route [m]"
-        rows = self.m_max + (2 if self.profile == "refined" else 1)  # replication: levels up to the top border
+        elif self.config.objective == "threat":
+            self.f1_label = "hazards' threat (obstacle on route + person meeting + goal turn, by narrowness)"
+        walls = 48 if self.hazards else self.m_max  # hazards: 48 wall rows, then the start, goal and hazards
+        rows = walls + (2 if self.profile == "refined" else 1)  # replication: levels up to the top border
         if self.config.map_size != rows:
             raise ScenarioError("config.map_size", f"{self.config.map_size} does not match one row per element",
                                 str(rows))
 
     def layout(self):
+        if self.config.scenario == "hazards":
+            from .robot_hazards import ATTRIBUTES, FIRST_HAZARD
+
+            return ATTRIBUTES, FIRST_HAZARD, FIRST_HAZARD + int(self.config.max_hazards)
         return REFINED_LAYOUT if self.profile == "refined" else REPLICATION_LAYOUT
+
+    @property
+    def hazards(self) -> bool:
+        """A hazards scenario (issue 48: ``problems.robot_hazards``), not the paper's map of walls."""
+        return self.config.scenario == "hazards"
+
+    def canonical(self, G: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if self.hazards:
+            from .robot_hazards import canonical
+
+            return canonical(G, lengths)
+        return G, lengths
+
+    def search_operators(self, settings: Any) -> dict[str, Any]:
+        if self.hazards:  # walls stay walls, the start stays the start: a mutation within each kind
+            from .robot_hazards_operators import HazardMutation
+
+            return {"mutation": HazardMutation(prob=settings.mutation_rate)}
+        return {}
 
     def loop_f1(self, outcome: Any) -> float:
         """``loop_objective: pace``: a pass's seconds per metre of its clearance route; a failure
@@ -657,21 +737,33 @@ class RobotProblem(Problem):
         With P(stay) = 0.5 (both profiles) the chain draws every type independently, as the
         replication code's generator does.
         """
-        m = self.m_max
-        G = np.zeros((n, m, len(self.attributes)))
+        if self.hazards:
+            from .robot_hazards import N_WALLS, sample
+
+            walls = self._sample_walls(n, N_WALLS, REFINED_LAYOUT[0], rng)
+            return sample(walls, self.config, rng)
+        G = self._sample_walls(n, self.m_max, self.attributes, rng)
+        return G, np.full(n, self.m_max, dtype=int)
+
+    def _sample_walls(self, n: int, m: int, attributes, rng: np.random.Generator) -> np.ndarray:
+        G = np.zeros((n, m, len(attributes)))
         if self.config.sampling == "markov":
             first = rng.integers(0, 2, size=(n, 1))
             switch = rng.random((n, m - 1)) >= self.config.type_p_stay
             G[:, :, 0] = (first + np.concatenate([np.zeros((n, 1), int), np.cumsum(switch, axis=1)], axis=1)) % 2
         else:
-            G[:, :, 0] = self.attributes[0].sample(rng, (n, m))
-        G[:, :, 1] = self.attributes[1].sample(rng, (n, m))
-        G[:, :, 2] = self.attributes[2].sample(rng, (n, m))
-        return G, np.full(n, m, dtype=int)
+            G[:, :, 0] = attributes[0].sample(rng, (n, m))
+        G[:, :, 1] = attributes[1].sample(rng, (n, m))
+        G[:, :, 2] = attributes[2].sample(rng, (n, m))
+        return G
 
     # --- fitness -------------------------------------------------------------------------
     def planning_grids(self, G: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Raw occupancy and the radius-inflated grid the planners use."""
+        """Raw occupancy and the radius-inflated grid the planners use (the mapped walls only)."""
+        if self.hazards:
+            from .robot_hazards import N_WALLS
+
+            G, lengths = np.asarray(G)[:, :N_WALLS, :3], np.full(len(G), N_WALLS)
         grids = build_grids(G, lengths, self.config)
         planning = inflate(grids, self.config.robot_radius, self.config.resolution, INFLATION_RULE[self.profile])
         if self.profile == "replication":  # its planner never checks the start: the robot leaves it
@@ -682,6 +774,8 @@ class RobotProblem(Problem):
     def evaluate(self, G: np.ndarray, lengths: np.ndarray) -> Evaluation:
         G = np.asarray(G, dtype=float)
         lengths = np.asarray(lengths, dtype=int).reshape(-1)
+        if self.hazards:
+            return self._evaluate_hazards(G, lengths)
         grids, planning = self.planning_grids(G, lengths)
         cells = batch_path_lengths(planning, self.config.start, self.config.goal, self.config.diagonal,
                                    engine=self.config.engine)
@@ -704,6 +798,8 @@ class RobotProblem(Problem):
     # --- environment ---------------------------------------------------------------------
     def environment(self, scenario: Scenario) -> RobotMap:
         G, lengths = self.codec.split(self.codec.to_row(scenario))
+        if self.hazards:
+            return self._hazard_environment(G[0], int(lengths[0]))
         grids, planning = self.planning_grids(G, lengths)
         length, path = astar(planning[0], self.config.start, self.config.goal, self.config.diagonal)
         res = self.config.resolution
@@ -712,3 +808,78 @@ class RobotProblem(Problem):
         if math.isfinite(length):
             out.path, out.path_length, out.reachable = path, length * res, True
         return out
+
+    # --- hazards scenarios (issue 48; ``problems.robot_hazards``) ------------------------------
+    def _evaluate_hazards(self, G: np.ndarray, lengths: np.ndarray) -> Evaluation:
+        """The kinds in their places, a route on the mapped walls (F1: its length, the paper's
+        objective), hazards clear of the start and goal, people with room to walk. Metrics count
+        the hazards by kind."""
+        from . import robot_hazards as hz
+
+        cfg = self.config
+        settings = hz.HazardSettings.of(cfg)
+        grids, planning = self.planning_grids(G, lengths)
+        in_domain = self.codec.in_domain(G, lengths)
+        P = len(G)
+        f1, valid, route_m = np.zeros(P), np.zeros(P, dtype=bool), np.zeros(P)
+        reasons: list[str | None] = [None] * P
+        counts = {name: np.zeros(P) for name in ("boxes", "posts", "people")}
+        for i in range(P):
+            m = int(lengths[i])
+            reason = None if in_domain[i] else self.codec.domain_reason(G[i], m)
+            reason = reason or hz.kind_reason(G[i], m, cfg)
+            if reason is None:
+                layout = hz.decode(G[i], m, settings)
+                length, path = astar(planning[i], layout.start, layout.goal, cfg.diagonal)
+                if not math.isfinite(length):
+                    reason = NO_PATH
+                else:
+                    route = hz.PlacementRoute((np.asarray(path, dtype=float) + 0.5) * cfg.resolution)
+                    posts, boxes, people = hz.obstacles_on(route, layout, settings, grids[i], cfg.resolution)
+                    reason = hz.placement_reason(layout, posts, boxes, people, settings, cfg.resolution)
+                    counts["boxes"][i], counts["posts"][i], counts["people"][i] = len(boxes), len(posts), len(people)
+                    f1[i] = route_m[i] = length * cfg.resolution
+                    if cfg.objective == "threat" and reason is None:
+                        f1[i] = hz.features(route, layout, posts, boxes, people, grids[i], cfg.resolution)["threat"]
+            if reason is None:
+                valid[i] = True
+            else:
+                reasons[i], f1[i] = reason, 0.0
+        metrics = {"path_length": np.where(valid, route_m, 0.0), **counts}
+        if cfg.objective == "threat":
+            metrics["threat"] = f1.copy()
+        return Evaluation(f1, valid, reasons, metrics)
+
+    def _hazard_environment(self, cells: np.ndarray, length: int) -> "RobotMap":
+        """The mapped walls, the poses, the route hazards sit on (``path``) and the unmapped
+        obstacles (``unmapped``)."""
+        from . import robot_hazards as hz
+
+        cfg = self.config
+        settings = hz.HazardSettings.of(cfg)
+        grids, planning = self.planning_grids(cells[None], np.array([length]))
+        layout = hz.decode(cells, length, settings)
+        res = cfg.resolution
+        out = RobotMap(grids[0], res, layout.start, layout.goal, (0.0, 0.0), (0.0, 0.0),
+                       start_yaw=layout.start_yaw, goal_yaw=layout.goal_yaw)
+        out.start_m, out.goal_m = out.to_metres(layout.start), out.to_metres(layout.goal)
+        route_len, path = astar(planning[0], layout.start, layout.goal, cfg.diagonal)
+        if math.isfinite(route_len):
+            out.path, out.path_length, out.reachable = path, route_len * res, True
+            route = hz.PlacementRoute((np.asarray(path, dtype=float) + 0.5) * res)
+            posts, boxes, people = hz.obstacles_on(route, layout, settings, grids[0], res)
+            out.unmapped = {"posts": posts.tolist(), "boxes": boxes.tolist(), "people": people}
+        return out
+
+    def hazard_features(self, scenario: Scenario, speed: float = 0.5) -> dict[str, float]:
+        """``robot_hazards.features`` of one hazards scenario (what its hazards do to the route)."""
+        from . import robot_hazards as hz
+
+        env = self.environment(scenario)
+        if not env.reachable:
+            return {}
+        G, lengths = self.codec.split(self.codec.to_row(scenario))
+        layout = hz.decode(G[0], int(lengths[0]), hz.HazardSettings.of(self.config))
+        u = env.unmapped
+        return hz.features(hz.PlacementRoute(np.asarray(env.path_m)), layout, np.asarray(u["posts"]).reshape(-1, 3),
+                           np.asarray(u["boxes"]).reshape(-1, 4), u["people"], env.grid, env.resolution, speed)

@@ -136,16 +136,75 @@ def velocity_command(msg: Any) -> tuple[float, float]:
     return float(v), float(w)
 
 
-STATUS_OK, STATUS_ERROR = 0, 2  # diagnostic_msgs/DiagnosticStatus levels
+STATUS_OK, STATUS_WARN, STATUS_ERROR = 0, 1, 2  # diagnostic_msgs/DiagnosticStatus levels
 
 
-def status_report(make: Make, now_ns: int, name: str, problem: str = "", frame_id: str = "") -> Any:
+def status_report(make: Make, now_ns: int, name: str, problem: str = "", frame_id: str = "", note: str = "") -> Any:
     """A stamped status (``diagnostic_msgs/DiagnosticArray``, one status): level ERROR with
-    ``problem`` as its message (the stack gave up, the body touches a wall), else OK. Sent every
-    cycle, the OK ones are heartbeats: they tell a judge that nothing happened up to their stamp."""
-    status = make("diagnostic_msgs/msg/DiagnosticStatus", level=STATUS_ERROR if problem else STATUS_OK, name=name,
-                  message=problem, hardware_id="")
+    ``problem`` as its message (the stack gave up, the body touches a wall), else WARN with
+    ``note`` (something a judge records but does not count: a person walked into a standing
+    robot), else OK. Sent every cycle, the OK and WARN ones are heartbeats: they tell a judge that
+    nothing happened up to their stamp."""
+    level = STATUS_ERROR if problem else STATUS_WARN if note else STATUS_OK
+    status = make("diagnostic_msgs/msg/DiagnosticStatus", level=level, name=name,
+                  message=problem or note, hardware_id="")
     return make("diagnostic_msgs/msg/DiagnosticArray", header=header(make, now_ns, frame_id), status=[status])
+
+
+# --- a hosted world's unmapped obstacles and people (issue 48) -----------------------------------
+MARKER_CUBE, MARKER_CYLINDER, MARKER_LINE_STRIP = 1, 3, 4
+
+
+def obstacles_message(make: Make, stamp_ns_: int, obstacles: dict) -> Any:
+    """What a world holds besides the map (``sims.obstacles.Obstacles.to_dict``) for the scenario
+    whose map and start pose carry ``stamp_ns_``: ``std_msgs/String`` JSON (a contract of ours,
+    like the thermostat's room model topic)."""
+    return make("std_msgs/msg/String", data=json.dumps({"stamp_ns": int(stamp_ns_), "obstacles": obstacles}))
+
+
+def obstacles_from_message(msg: Any) -> tuple[int, dict]:
+    """(stamp ns, obstacles dict) of ``obstacles_message``; raises ValueError on anything else."""
+    try:
+        data = json.loads(msg.data)
+        return int(data["stamp_ns"]), dict(data["obstacles"])
+    except (TypeError, ValueError, KeyError) as exc:
+        raise ValueError(f"obstacles message: expected JSON {{'stamp_ns', 'obstacles'}} ({exc})") from None
+
+
+def obstacle_markers(make: Make, now_ns: int, obstacles: Any, t: float, frame_id: str = "map") -> Any:
+    """``visualization_msgs/MarkerArray`` of what is in the world but not in the map, at world time
+    ``t``: boxes (orange cubes), posts (orange cylinders), people (purple cylinders, and each one's
+    path as a line), so RViz and Foxglove show what the stack was not told."""
+    markers = []
+    head = header(make, now_ns, frame_id)
+
+    def marker(ns: str, k: int, kind: int, x: float, y: float, sx: float, sy: float, sz: float, rgba, points=()):
+        markers.append(make(
+            "visualization_msgs/msg/Marker", header=head, ns=ns, id=int(k), type=kind, action=0,
+            pose=pose(make, x, y), scale=make("geometry_msgs/msg/Vector3", x=float(sx), y=float(sy), z=float(sz)),
+            color=make("std_msgs/msg/ColorRGBA", r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3]),
+            points=[make("geometry_msgs/msg/Point", x=float(px), y=float(py), z=0.0) for px, py in points]))
+
+    orange, purple = (1.0, 0.5, 0.0, 0.9), (0.5, 0.2, 0.7, 0.9)
+    for k, (x0, y0, x1, y1) in enumerate(np.asarray(obstacles.boxes, dtype=float)):
+        marker("unmapped_boxes", k, MARKER_CUBE, (x0 + x1) / 2, (y0 + y1) / 2, x1 - x0, y1 - y0, 0.5, orange)
+    for k, (x, y, r) in enumerate(np.asarray(obstacles.posts, dtype=float)):
+        marker("unmapped_posts", k, MARKER_CYLINDER, x, y, 2 * r, 2 * r, 1.0, orange)
+    for k, person in enumerate(obstacles.people):
+        x, y = person.position(t)
+        marker("people", k, MARKER_CYLINDER, x, y, 2 * person.radius, 2 * person.radius, 1.7, purple)
+        marker("people_paths", k, MARKER_LINE_STRIP, 0.0, 0.0, 0.03, 0.0, 0.0, (0.5, 0.2, 0.7, 0.5),
+               points=np.asarray(person.path, dtype=float))
+    return make("visualization_msgs/msg/MarkerArray", markers=markers)
+
+
+def status_note(msg: Any) -> str | None:
+    """The first WARN status's message of a ``DiagnosticArray`` (``status_report``'s ``note``), else None."""
+    for status in msg.status:
+        level = status.level[0] if isinstance(status.level, (bytes, bytearray)) else int(status.level)
+        if level == STATUS_WARN:
+            return clip_text(status.message) or "no reason given"
+    return None
 
 
 def status_problem(msg: Any) -> tuple[int, str | None]:
@@ -226,7 +285,9 @@ def scenario_message(make: Make, now_ns: int, problem: Problem, scenario: Scenar
         )
     env = problem.environment(scenario)
     if problem.name == "robot":
-        return make(typename, meta=meta_msg, map=occupancy_grid(make, now_ns, env), start=pose_stamped(make, now_ns, *env.start_m), goal=pose_stamped(make, now_ns, *env.goal_m))
+        return make(typename, meta=meta_msg, map=occupancy_grid(make, now_ns, env),
+                    start=pose_stamped(make, now_ns, *env.start_m, env.start_yaw or 0.0),
+                    goal=pose_stamped(make, now_ns, *env.goal_m, env.goal_yaw or 0.0))
     if problem.name == "vehicle":
         cfg = problem.config
         return make(

@@ -14,6 +14,11 @@ Poses are turned into the map frame with ``/tf``'s ``map -> <odom frame>`` (iden
 and each scan into map-frame beam ends from the pose at its stamp and ``/tf_static``'s sensor
 offset, so the drawing side needs no ROS. Samples from before the robot is shown at the
 scenario's start (a world still showing the last run) are dropped, as ``sut_adapter`` ignores them.
+
+A hosted world with unmapped obstacles (issue 48: boxes, thin posts, walking people) shows them on
+``/ambiegen/world/markers`` with every scan (``conversions.obstacle_markers``); they are read into
+``RobotRun.markers`` as plain arrays in the map frame. A bag without them (older bags, worlds
+without hazards) gives an empty list.
 """
 from __future__ import annotations
 
@@ -36,6 +41,8 @@ ROBOT_SCENARIOS = topics.scenarios("robot")
 ODOM, SCAN, PLAN, TF, TF_STATIC = "/odom", "/scan", "/plan", "/tf", "/tf_static"
 SETUP_TOPICS = ("/initialpose", "/goal_pose", "/map")  # what starts a scenario on the stack, most telling first
 START_TOLERANCE = 0.5  # a pose this close to the scenario's start shows the new run [m] (sut_adapter's default)
+MARKERS = topics.WORLD_MARKERS  # the world's unmapped obstacles and people (a stack in /<ns>: /<ns> + this)
+MARKER_ADD = 0  # visualization_msgs/Marker ADD (= MODIFY); DELETE and DELETEALL draw nothing
 
 
 @dataclass
@@ -82,7 +89,9 @@ class RobotRun:
     """One scenario's streams, in the map frame, on the stamps' clock (``t`` in s from the first pose).
 
     ``poses`` is (N, 4): t, x, y, yaw; ``scans`` and ``plans`` are (t, (K, 2) points) in stamp
-    order; ``grid`` is bool [y, x] (walls), cell (0, 0) at ``origin``."""
+    order; ``grid`` is bool [y, x] (walls), cell (0, 0) at ``origin``. ``markers`` are (t, what the
+    world held besides the map then), in stamp order: ``boxes`` (B, 4) x0, y0, x1, y1; ``posts``
+    (P, 3) and ``people`` (M, 3) cx, cy, r; ``people_paths`` a (K, 2) polyline per person."""
 
     entry: ScenarioEntry
     run_id: str
@@ -94,6 +103,7 @@ class RobotRun:
     poses: np.ndarray
     scans: list[tuple[float, np.ndarray]] = field(default_factory=list)
     plans: list[tuple[float, np.ndarray]] = field(default_factory=list)
+    markers: list[tuple[float, dict[str, Any]]] = field(default_factory=list)
     dropped_before_start: int = 0  # poses of the last run still shown at the start of the stretch
     t_goal: float = 0.0  # when the goal was given: the first pose logged after it (the adapter's t = 0)
 
@@ -210,12 +220,17 @@ def read_run(index: BagIndex, scenario_id: int) -> RobotRun:
     odom: list[tuple[int, int, Any]] = []  # stamp, log time, message
     scans: list[tuple[int, Any]] = []
     plans: list[tuple[int, Any]] = []
-    wanted = {ODOM, SCAN, PLAN, TF} & set(index.topic_counts)
+    markers: list[tuple[int, Any]] = []
+    markers_topic = world_markers_topic(index.topic_counts)
+    wanted = ({ODOM, SCAN, PLAN, TF} & set(index.topic_counts)) | ({markers_topic} if markers_topic else set())
     for topic, _, log_ns, m in _messages(index.path, wanted, entry.start_ns, entry.end_ns + 1):
         if topic == TF:
             frames.add(m)
         elif topic == ODOM:
             odom.append((stamp_ns(m.header), log_ns, m))
+        elif topic == markers_topic:
+            if m.markers:  # an empty array carries no stamp (and no obstacle)
+                markers.append((stamp_ns(m.markers[0].header), m))
         else:
             (scans if topic == SCAN else plans).append((stamp_ns(m.header), m))
     if not odom:
@@ -244,7 +259,47 @@ def read_run(index: BagIndex, scenario_id: int) -> RobotRun:
         points = path_points(m)
         if len(points):
             run.plans.append(((stamp - t0) / 1e9, points))
+    for stamp, m in sorted(markers, key=lambda item: item[0]):
+        if stamp >= t0:  # from before: the last scenario's world
+            run.markers.append(((stamp - t0) / 1e9, hazards_of(m, frames, stamp)))
     return run
+
+
+def world_markers_topic(topic_counts: dict[str, int]) -> str | None:
+    """The bag's ``/ambiegen/world/markers``: the root namespace's, like ``/odom``; else the one stack's
+    in a namespace (``/<ns>/ambiegen/world/markers``); None when there is none, or several stacks' to
+    choose from (a ``stacks:=K`` campaign: which stack ran the scenario is not in its messages)."""
+    if topic_counts.get(MARKERS):
+        return MARKERS
+    found = [t for t, n in topic_counts.items() if n and t.endswith(MARKERS) and t.startswith("/")]
+    return found[0] if len(found) == 1 else None
+
+
+def hazards_of(msg: Any, frames: "Frames", stamp: int) -> dict[str, Any]:
+    """A world's ``MarkerArray`` (``conversions.obstacle_markers``) as plain map-frame arrays: ``boxes``
+    (B, 4) x0, y0, x1, y1 (axis-aligned, as the world holds them); ``posts`` and ``people`` (N, 3) cx, cy,
+    r; ``people_paths``, a (K, 2) polyline per person. Namespaces it does not know are left out."""
+    rows: dict[str, list[tuple[int, Any]]] = {"unmapped_boxes": [], "unmapped_posts": [], "people": [],
+                                              "people_paths": []}
+    for m in msg.markers:
+        if m.ns in rows and int(m.action) == MARKER_ADD:
+            x, y, yaw = frames.in_map(m.header.frame_id or "map", stamp, m.pose)
+            sx, sy = float(m.scale.x), float(m.scale.y)
+            if m.ns == "unmapped_boxes":
+                value: Any = (x - sx / 2, y - sy / 2, x + sx / 2, y + sy / 2)
+            elif m.ns == "people_paths":
+                c, s = math.cos(yaw), math.sin(yaw)
+                local = np.array([[p.x, p.y] for p in m.points], dtype=float).reshape(-1, 2)
+                value = local @ np.array([[c, s], [-s, c]]) + [x, y]
+            else:
+                value = (x, y, sx / 2)
+            rows[m.ns].append((int(m.id), value))
+
+    def table(ns: str, columns: int) -> np.ndarray:
+        return np.array([v for _, v in sorted(rows[ns], key=lambda r: r[0])], dtype=float).reshape(-1, columns)
+
+    return {"boxes": table("unmapped_boxes", 4), "posts": table("unmapped_posts", 3), "people": table("people", 3),
+            "people_paths": [v for _, v in sorted(rows["people_paths"], key=lambda r: r[0])]}
 
 
 def beam_ends(scan: Any, pose: np.ndarray, sensor: tuple[float, float, float]) -> np.ndarray:

@@ -2,11 +2,16 @@
 
 Every topic lives under ``/ambiegen``; the recorder records all of them (plus anything else it
 discovers under the namespace). Scenario and result topics are reliable with a deep queue so a
-burst of scenarios is never dropped; the run config is latched for late joiners.
+burst of scenarios is never dropped; the run config is latched for late joiners. A scenario the
+problem calls invalid is never sent: the generator logs it on ``not_sent(problem)``, a topic no
+simulator reads, kept for a recorder that matches late (``NOT_SENT_QOS``).
 """
 from __future__ import annotations
 
 from .qos import DEFAULT, LATCHED, STREAM, Qos
+
+NOT_SENT_QOS = Qos(reliable=True, transient_local=True, depth=100)
+"""``not_sent`` topics: reliable, and the last 100 kept for a recorder that matches after the first ones."""
 
 NAMESPACE = "/ambiegen"
 
@@ -14,6 +19,11 @@ RUN_CONFIG = f"{NAMESPACE}/run_config"
 STATUS = f"{NAMESPACE}/status"
 WORKERS = f"{NAMESPACE}/workers"
 RESULTS = f"{NAMESPACE}/results"
+
+# a hosted robot world's unmapped obstacles and people (issue 48): the adapter tells the world what
+# is in it besides the map (std_msgs/String, JSON: {"stamp_ns", "obstacles"}); the world shows them
+WORLD_OBSTACLES = f"{NAMESPACE}/world/obstacles"
+WORLD_MARKERS = f"{NAMESPACE}/world/markers"
 
 RUN_CONFIG_TYPE = "ambiegen_msgs/msg/RunConfig"
 STATUS_TYPE = "ambiegen_msgs/msg/RunStatus"
@@ -44,6 +54,13 @@ def scenarios(problem: str) -> str:
     return f"{NAMESPACE}/{problem}/scenarios"
 
 
+def not_sent(problem: str) -> str:
+    """Where the generator logs the scenarios it does not send because the problem calls them
+    invalid, e.g. ``/ambiegen/vehicle/not_sent``: the scenario message (``meta.surrogate_valid``
+    false, ``meta.invalid_reason`` the broken rule, ``meta.attempt`` 0); no simulator subscribes."""
+    return f"{NAMESPACE}/{problem}/not_sent"
+
+
 def run_topics() -> list[tuple[str, str, Qos]]:
     """(topic, type, QoS) of every topic an AmbieGen run may use, for every problem."""
     topics = [
@@ -53,5 +70,6 @@ def run_topics() -> list[tuple[str, str, Qos]]:
         (RESULTS, RESULT_TYPE, STREAM),
     ]
     topics += [(scenarios(p), t, STREAM) for p, t in SCENARIO_TYPES.items()]
+    topics += [(not_sent(p), t, NOT_SENT_QOS) for p, t in SCENARIO_TYPES.items()]
     topics += [(timeline(p), t, STREAM) for p, t in TIMELINE_TYPES.items()]
     return topics

@@ -66,11 +66,16 @@ class HostedWorld:
     def ready(self) -> bool:
         return self.world is not None
 
-    def load_map(self, grid: np.ndarray, resolution: float, origin: tuple[float, float] = (0.0, 0.0)) -> None:
-        """A new map: a new world with the robot at the last teleport's pose, standing still."""
+    def load_map(self, grid: np.ndarray, resolution: float, origin: tuple[float, float] = (0.0, 0.0),
+                 obstacles: Any = None) -> None:
+        """A new map: a new world with the robot at the last teleport's pose, standing still.
+        ``obstacles`` (``sims.obstacles.Obstacles``, map frame): in the world but not in the map;
+        people walk on the world's clock from this reset (issue 48)."""
         self.origin = (float(origin[0]), float(origin[1]))
+        if obstacles is not None and self.origin != (0.0, 0.0):
+            obstacles = obstacles.shifted(-self.origin[0], -self.origin[1])
         self.world = RobotWorld(np.asarray(grid, dtype=bool), float(resolution), self.cfg, self._local(self.pose0),
-                                np.random.default_rng(self.seed))
+                                np.random.default_rng(self.seed), obstacles=obstacles)
         self._restart()
 
     def teleport(self, x: float, y: float, yaw: float) -> None:
@@ -139,6 +144,13 @@ class HostedWorld:
             return self.pose0
         w = self.world
         return w.x + self.origin[0], w.y + self.origin[1], w.yaw
+
+    def obstacles_in_map(self) -> Any:
+        """The world's unmapped obstacles in the map frame (None without any)."""
+        w = self.world
+        if w is None or w.obstacles is None:
+            return None
+        return w.obstacles.shifted(*self.origin) if self.origin != (0.0, 0.0) else w.obstacles
 
     @property
     def twist(self) -> tuple[float, float]:

@@ -531,10 +531,11 @@ def polyline_length(points: np.ndarray) -> float:
 
 def navigate(grid: np.ndarray, resolution: float, start: tuple[int, int], goal: tuple[int, int],
              config: RobotSimConfig | None = None, seed: int = 0, diagonal: str = "both_free",
-             route: np.ndarray | None = None) -> dict[str, Any]:
+             route: np.ndarray | None = None, obstacles: Any = None, heading: float | None = None) -> dict[str, Any]:
     """Drive from cell ``start`` to cell ``goal`` on occupancy ``grid`` ([y, x]) along ``route``
     ((K, 2) metres, from the start's centre; default ``plan_route``'s, with the problem's
-    ``diagonal`` rule for the old route); returns ``drive``'s record."""
+    ``diagonal`` rule for the old route); returns ``drive``'s record. ``obstacles`` and
+    ``heading``: see ``drive``."""
     cfg = config or RobotSimConfig()
     if route is None:
         waypoints, route_length = plan_route(np.asarray(grid, dtype=bool), resolution, start, goal, cfg, diagonal)
@@ -543,18 +544,21 @@ def navigate(grid: np.ndarray, resolution: float, start: tuple[int, int], goal: 
         route_length = polyline_length(waypoints) if len(waypoints) else math.inf
     start_xy = ((start[0] + 0.5) * resolution, (start[1] + 0.5) * resolution)
     goal_xy = ((goal[0] + 0.5) * resolution, (goal[1] + 0.5) * resolution)
-    run = drive(grid, resolution, start_xy, goal_xy, waypoints, cfg, seed, cfg.time_limit(route_length))
+    run = drive(grid, resolution, start_xy, goal_xy, waypoints, cfg, seed, cfg.time_limit(route_length), heading,
+                obstacles)
     run["route_length"] = float(route_length) if math.isfinite(route_length) else None
     return run
 
 
 def drive(grid: np.ndarray, resolution: float, start_xy: tuple[float, float], goal_xy: tuple[float, float],
           waypoints: np.ndarray, config: RobotSimConfig | None = None, seed: int = 0,
-          time_limit: float | None = None, heading: float | None = None) -> dict[str, Any]:
+          time_limit: float | None = None, heading: float | None = None, obstacles: Any = None) -> dict[str, Any]:
     """Drive the robot from ``start_xy`` (facing ``heading``; default ``waypoints[1]``, else the
     goal) through ``waypoints`` ((K, 2) metres, ``waypoints[0]`` = the start; none = no route) to
     ``goal_xy``, judged by the monitors; ``time_limit`` defaults to the config's for the waypoints'
-    polyline.
+    polyline. ``obstacles`` (``sims.obstacles.Obstacles``): in the world, not on ``grid``; driving
+    into a person is a ``collision``, a person walking into the robot is counted
+    (``contacts_not_at_fault``), not a failure.
 
     Keys: outcome, failure_kind, detail, time, time_limit, path_length, min_clearance, route_length,
     waypoints, waypoints_reached, stall_cause, unsafe_proximity_events, unsafe_proximity_s,
@@ -570,7 +574,7 @@ def drive(grid: np.ndarray, resolution: float, start_xy: tuple[float, float], go
     if heading is None:
         ahead = waypoints[1] if len(waypoints) > 1 else (gx, gy)
         heading = math.atan2(ahead[1] - sy, ahead[0] - sx)
-    world = RobotWorld(grid, resolution, cfg, (sx, sy, heading), np.random.default_rng(seed))
+    world = RobotWorld(grid, resolution, cfg, (sx, sy, heading), np.random.default_rng(seed), obstacles=obstacles)
     follower = RouteFollower(cfg, waypoints, world.beam_angles, world.pose)
     monitors = RobotMonitors(cfg, (gx, gy), time_limit, waypoints[1:], no_route=not len(waypoints))
 
@@ -594,7 +598,7 @@ def drive(grid: np.ndarray, resolution: float, start_xy: tuple[float, float], go
         # --- act: the world moves the body; a wall stops it ---
         clearance = world.step(v_cmd, w_cmd)
         rec[k] = (t, world.x, world.y, world.yaw, world.v, float(stall_cause is not None))
-        monitors.update(t, world.x, world.y, clearance, stall_cause)
+        monitors.update(t, world.x, world.y, clearance, stall_cause, collision=world.person_contact)
     rec = rec[:k + 1]
     m = monitors.metrics()
     detail = monitors.detail
@@ -602,6 +606,7 @@ def drive(grid: np.ndarray, resolution: float, start_xy: tuple[float, float], go
         detail += " (the ND driver gave up)"
     return {
         **m,
+        "contacts_not_at_fault": world.contacts_not_at_fault,
         "failure_kind": monitors.kind,
         "detail": detail,
         "route_length": polyline if math.isfinite(polyline) else None,
@@ -622,8 +627,14 @@ def simulate(problem: Any, scenario: Any, config: RobotSimConfig | None = None, 
     cfg = config or RobotSimConfig()
     env = problem.environment(scenario)
     pc = problem.config
-    run = navigate(env.grid, env.resolution, pc.start, pc.goal, cfg, seed=seed,
-                   diagonal=cfg.route_diagonal or pc.diagonal, route=route)
+    obstacles = None
+    if env.unmapped:
+        from .obstacles import Obstacles
+
+        obstacles = Obstacles.from_dict(env.unmapped)
+    run = navigate(env.grid, env.resolution, env.start, env.goal, cfg, seed=seed,
+                   diagonal=cfg.route_diagonal or pc.diagonal, route=route, obstacles=obstacles,
+                   heading=env.start_yaw)
     timeline = run["timeline"]
     metrics = {
         "outcome": run["outcome"],
@@ -643,6 +654,7 @@ def simulate(problem: Any, scenario: Any, config: RobotSimConfig | None = None, 
         "radius": cfg.radius,
         "distance_to_goal": float(math.hypot(timeline["x"][-1] - env.goal_m[0], timeline["y"][-1] - env.goal_m[1])),
         "goal_tolerance": cfg.goal_tolerance,
+        "contacts_not_at_fault": run["contacts_not_at_fault"],
         "seed": int(seed),
     }
     return Outcome(

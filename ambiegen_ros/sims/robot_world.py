@@ -22,6 +22,7 @@ the same numbers).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -400,35 +401,59 @@ class RobotWorld:
     in metres and radians; ``rng``: the generator of the laser noise (seeded by the caller, so a run
     is deterministic for its seed). State: ``x``, ``y``, ``yaw``, ``v``, ``w``; ``contact`` is True
     after a step that ended at a wall.
+
+    ``obstacles`` (``sims.obstacles.Obstacles``, issue 48): what is in the world but not on the grid.
+    The laser sees them; boxes and posts stop the body as walls do; people walk their paths on the
+    world's clock ``t`` (seconds since the world started) and never stop for the robot. A contact
+    with a person is the robot's fault only when it moves towards it (``robot_at_fault``): then the
+    body stops and ``person_contact`` says so (a collision); otherwise it is counted in
+    ``contacts_not_at_fault`` and the robot goes on.
     """
 
     def __init__(self, grid: np.ndarray, resolution: float, config: Any, pose: tuple[float, float, float],
-                 rng: np.random.Generator | None = None, footprint: np.ndarray = PIONEER2DX):
+                 rng: np.random.Generator | None = None, footprint: np.ndarray = PIONEER2DX, obstacles: Any = None):
         self.cfg = config
         self.grid = np.asarray(grid, dtype=bool)
         self.resolution = resolution
         self.walls = WallGeometry(self.grid, resolution, config.clearance_cells, footprint=footprint,
                                   engine=config.engine)
+        self.footprint = np.asarray(footprint, dtype=float)
         half_fov = math.radians(config.fov_deg) / 2
         self.beam_angles = np.linspace(-half_fov, half_fov, config.beams)  # in the robot frame
         self.rng = rng if rng is not None else np.random.default_rng(0)
         self.x, self.y, self.yaw = float(pose[0]), float(pose[1]), float(pose[2])
         self.v = self.w = 0.0
         self.contact = False
+        self.obstacles = obstacles if obstacles is not None and not obstacles.empty() else None
+        self.statics = None if self.obstacles is None else dataclasses.replace(self.obstacles, people=())
+        self.t = 0.0
+        self.person_contact: str | None = None  # the at-fault contact with a person, once there is one
+        self.contacts_not_at_fault = 0
+        self._touching: set[int] = set()  # people the body touches now
 
     @property
     def pose(self) -> tuple[float, float, float]:
         return self.x, self.y, self.yaw
 
+    def _static_clearance(self, x: float, y: float, yaw: float) -> float:
+        """Walls, boxes and posts: what stops the body."""
+        d = self.walls.clearance_at(x, y, yaw)
+        if self.statics is not None and not self.statics.empty():
+            d = min(d, self.statics.body_clearance(x, y, yaw, self.footprint, self.t)[0])
+        return d
+
     def clearance(self) -> float:
-        """The body's distance to the nearest wall at the current pose (<= 0: contact)."""
-        return self.walls.clearance_at(self.x, self.y, self.yaw)
+        """The body's distance to the nearest wall, box or post at the current pose (<= 0: contact)."""
+        return self._static_clearance(self.x, self.y, self.yaw)
 
     def scan(self) -> tuple[np.ndarray, np.ndarray]:
         """Ranges of the beams at ``yaw + beam_angles`` (noisy where they hit), and which beams hit."""
         cfg = self.cfg
         ranges = cast_rays(self.grid, self.resolution, self.x, self.y, self.beam_angles + self.yaw, cfg.laser_range,
                            self.walls.padded, cfg.engine)
+        if self.obstacles is not None:
+            ranges = np.minimum(ranges, self.obstacles.ray_ranges(self.x, self.y, self.beam_angles + self.yaw,
+                                                                  cfg.laser_range, self.t))
         hits = ranges < cfg.laser_range
         if cfg.laser_noise > 0:  # noise on the returns; a beam that hit nothing reads the maximum range
             noisy = np.clip(ranges + self.rng.normal(0.0, cfg.laser_noise, ranges.shape), 0.0, cfg.laser_range)
@@ -445,13 +470,14 @@ class RobotWorld:
     def step(self, v_cmd: float, w_cmd: float) -> float:
         """One ``dt`` under the commands (acceleration limits, unicycle); returns the new clearance.
 
-        A step that would touch a wall ends at the first contact along it (bisection) and stops the
-        body there (``v = w = 0``, ``contact``), as Stage's does."""
+        A step that would touch a wall, box or post ends at the first contact along it (bisection)
+        and stops the body there (``v = w = 0``, ``contact``), as Stage's does. Then people: see the
+        class docstring."""
         cfg = self.cfg
         v_cmd = min(v_cmd, cfg.max_speed)
         self.v += _clip(v_cmd - self.v, -cfg.max_accel * cfg.dt, cfg.max_accel * cfg.dt)
         self.w += _clip(w_cmd - self.w, -cfg.max_turn_accel * cfg.dt, cfg.max_turn_accel * cfg.dt)
-        clearance_at = self.walls.clearance_at
+        clearance_at = self._static_clearance
         nx, ny, nyaw = self._pose_at(1.0)
         clearance = clearance_at(nx, ny, nyaw)
         if clearance <= 0.0:  # the first contact along the step, where the body stops
@@ -465,9 +491,39 @@ class RobotWorld:
             nx, ny, nyaw = self._pose_at(hi)
             clearance = clearance_at(nx, ny, nyaw)
             self.v = self.w = 0.0
+        v_step = self.v
         self.x, self.y, self.yaw = nx, ny, nyaw
+        self.t += cfg.dt
         self.contact = clearance <= 0.0
+        if self.obstacles is not None and self.obstacles.people:
+            self._meet_people(v_step)
         return clearance
+
+    def _meet_people(self, v: float) -> None:
+        """Contacts with people after a step: the robot's fault (it moved towards the person: the body
+        stops, ``person_contact``) or not (counted once per contact)."""
+        from .obstacles import contact_point, robot_at_fault
+
+        people = self.obstacles.people
+        circles = self.obstacles.circles_at(self.t)[-len(people):]
+        touching = set()
+        for k, (cx, cy, r) in enumerate(circles):
+            if math.hypot(cx - self.x, cy - self.y) > r + 0.5:  # beyond the body's reach (0.26 m)
+                continue
+            single = type(self.obstacles)(people=(people[k],))
+            if single.body_clearance(self.x, self.y, self.yaw, self.footprint, self.t)[0] > 0.0:
+                continue
+            touching.add(k)
+            if k in self._touching or self.person_contact is not None:
+                continue
+            point = contact_point(self.x, self.y, self.yaw, self.footprint, "person", 0, single, self.t)
+            if robot_at_fault((self.x, self.y), self.yaw, v, point):
+                self.person_contact = (f"the robot drove into person {k} at ({point[0]:.2f}, {point[1]:.2f}) "
+                                       f"moving at {v:.2f} m/s towards it")
+                self.v = self.w = 0.0
+            else:
+                self.contacts_not_at_fault += 1
+        self._touching = touching
 
 
 __all__ = ["ENGINES", "PIONEER2DX", "PIONEER2DX_LENGTH", "PIONEER2DX_ORIGIN_X", "PIONEER2DX_WIDTH", "WORLD_FIELDS",

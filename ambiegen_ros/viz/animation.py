@@ -4,14 +4,18 @@ Drawn from a ``ros.robot_bag.RobotRun`` (read here by attribute only, so this mo
 the map's walls, start and goal, the trajectory so far, the pioneer2dx footprint at the pose
 (``sims.robot_world.PIONEER2DX``, the body the oracles judge), the latest laser scan as beam ends,
 the stack's latest global plan, and once the verdict falls the failure point and the result's
-detail. Layers a bag does not hold (a stack without ``/plan``) are left out.
+detail. A world with hazards (issue 48, ``RobotRun.markers``) adds what is in it but not in the
+map: boxes and posts in orange, and people as purple discs where they are at the frame's time, each
+one's path dashed. Layers a bag does not hold (a stack without ``/plan``, a world without hazards)
+are left out, legend entries too.
 
 Frames are sampled at a fixed simulated rate: one every ``speed / fps`` simulated seconds, played
 at ``fps``; a run that would need more than ``MAX_FRAMES`` frames is played faster so that it fits
 (the factor used is returned), so a long run still makes a GIF of a reasonable size. The view is
 the part of the map the robot used (start, trajectory, failure point, the goal when it is near,
-plus a margin), since on the whole 50 m map a 0.44 m robot is a few pixels; an overview beside it
-shows the whole map. Everything that does not move is drawn once into a background picture.
+and the hazards within ``HAZARD_NEAR`` of those, plus a margin), since on the whole 50 m map a
+0.44 m robot is a few pixels; an overview beside it shows the whole map. Everything that does not
+move is drawn once into a background picture.
 """
 from __future__ import annotations
 
@@ -28,7 +32,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib import animation  # noqa: E402
-from matplotlib.patches import Polygon, Rectangle  # noqa: E402
+from matplotlib.patches import Circle, Polygon, Rectangle  # noqa: E402
 
 MAX_FRAMES = 300  # at the default 10 fps a 30 s GIF; longer runs are sped up to fit
 FORMATS = (".gif", ".mp4")
@@ -38,6 +42,10 @@ HOLD_S = 1.5  # the last frame (the verdict) stays this long before the GIF loop
 FIGSIZE = (7.4, 5.6)  # [in]: the map around the robot, and a column for the overview, legend and clock
 MAX_VIEW = 24.0  # the goal is in the view when that keeps its side within this [m]
 FAILURE_COLOR = "red"  # used by nothing else in the picture, so the verdict's marker stands out
+HAZARD_NEAR = 3.0  # a box, post or person this close to where the robot went is kept in the view [m]
+UNMAPPED_COLOR, POST_COLOR = "tab:orange", "darkorange"  # in the world, not in the map (as viz/robot.py)
+PERSON_COLOR = "tab:purple"  # people and their paths (as viz/robot.py and the world's markers)
+TRAIL_COLOR = "tab:brown"  # the path driven: not the people's purple
 
 
 def check_output(path: str | Path, overwrite: bool = False) -> Path:
@@ -78,14 +86,52 @@ def _latest(items: list[tuple[float, Any]], t: float) -> Any:
     return found
 
 
+def _hazards(run: Any) -> tuple[np.ndarray, np.ndarray, list[np.ndarray], int]:
+    """What a run's markers hold that stays put, each once: boxes (B, 4), posts (P, 3), the people's
+    paths; and the most people shown at one time."""
+    markers = getattr(run, "markers", None) or []
+    boxes = np.unique(np.vstack([np.zeros((0, 4))] + [m["boxes"] for _, m in markers]), axis=0)
+    posts = np.unique(np.vstack([np.zeros((0, 3))] + [m["posts"] for _, m in markers]), axis=0)
+    paths: dict[bytes, np.ndarray] = {}
+    for _, m in markers:
+        for path in m["people_paths"]:
+            paths.setdefault(np.ascontiguousarray(path, dtype=float).tobytes(), path)
+    return boxes, posts, list(paths.values()), max((len(m["people"]) for _, m in markers), default=0)
+
+
+def _near(points: np.ndarray, route: np.ndarray, reach: np.ndarray) -> np.ndarray:
+    """Which ``points`` lie within ``HAZARD_NEAR`` + their ``reach`` of some point of ``route``."""
+    if not len(points):
+        return np.zeros(0, dtype=bool)
+    route = np.unique(np.round(route, 1), axis=0)  # 10 cm is plenty, and keeps the distance table small
+    gap = np.hypot(*(points[:, None, :] - route[None, :, :]).transpose(2, 0, 1)).min(axis=1)
+    return gap <= HAZARD_NEAR + reach
+
+
+def _hazard_points(run: Any, route: np.ndarray) -> np.ndarray:
+    """The extent of every box, post and person (wherever they walked) near ``route``, as points."""
+    boxes, posts, _, _ = _hazards(run)
+    people = np.vstack([np.zeros((0, 3))] + [m["people"] for _, m in (getattr(run, "markers", None) or [])])
+    people = np.unique(np.round(people, 1), axis=0)
+    centres = (boxes[:, :2] + boxes[:, 2:]) / 2
+    half = np.hypot(boxes[:, 2] - boxes[:, 0], boxes[:, 3] - boxes[:, 1]) / 2
+    keep = [boxes[_near(centres, route, half)].reshape(-1, 2)]  # both corners of each box kept
+    for circles in (posts, people):
+        near = circles[_near(circles[:, :2], route, circles[:, 2])]
+        keep += [near[:, :2] - near[:, 2:3], near[:, :2] + near[:, 2:3]]
+    return np.vstack(keep)
+
+
 def _view(run: Any) -> tuple[tuple[float, float], tuple[float, float]]:
     """x and y limits: where the robot went (start, trajectory, failure point) plus a margin, square,
-    within the map; the goal too when that keeps the view within ``MAX_VIEW`` (the overview shows it)."""
+    within the map; the goal too when that keeps the view within ``MAX_VIEW`` (the overview shows it);
+    and the hazards (boxes, posts, people where they walked) within ``HAZARD_NEAR`` of those."""
     point = getattr(run.entry.outcome, "failure_point", None)
     pts = np.vstack([run.poses[:, 1:3]] + [np.asarray([p], dtype=float) for p in (run.start, point) if p])
     with_goal = np.vstack([pts, [run.goal]]) if run.goal else pts
     if float((with_goal.max(axis=0) - with_goal.min(axis=0)).max()) + 2 * VIEW_MARGIN <= MAX_VIEW:
         pts = with_goal
+    pts = np.vstack([pts, _hazard_points(run, pts)])
     lo, hi = pts.min(axis=0) - VIEW_MARGIN, pts.max(axis=0) + VIEW_MARGIN
     side = max(float((hi - lo).max()), MIN_VIEW)
     centre = (lo + hi) / 2
@@ -139,6 +185,35 @@ def _draw_map(ax: Any, run: Any) -> None:
     ax.set_aspect("equal")
 
 
+def _draw_hazards(ax: Any, run: Any) -> list[Any]:
+    """The run's static hazards (boxes, posts, people's paths dashed) drawn once; returns a disc per
+    person, placed by ``_place_people`` each frame (labelled only when the run has them)."""
+    boxes, posts, paths, most = _hazards(run)
+    for k, (x0, y0, x1, y1) in enumerate(boxes):
+        ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fc=UNMAPPED_COLOR, ec="black", lw=0.5, alpha=0.85,
+                               zorder=3, label="box, not in the map" if k == 0 else None))
+    for k, (x, y, r) in enumerate(posts):
+        ax.add_patch(Circle((x, y), max(r, 0.1), fc=POST_COLOR, ec="black", lw=0.5, zorder=3,
+                            label="post, not in the map" if k == 0 else None))
+    for path in paths:
+        ax.plot(path[:, 0], path[:, 1], "--", color=PERSON_COLOR, lw=1.0, alpha=0.7, zorder=2)
+    people = [Circle((0.0, 0.0), 0.25, fc=PERSON_COLOR, ec="black", lw=0.5, alpha=0.8, zorder=4,
+                     label="person (dashed: path)" if k == 0 else None) for k in range(most)]
+    for disc in people:
+        ax.add_patch(disc)
+    return people
+
+
+def _place_people(people: list[Any], now: dict[str, Any] | None) -> None:
+    """The discs where the people are in ``now`` (the latest markers; None: none yet, all hidden)."""
+    rows = now["people"] if now is not None else np.zeros((0, 3))
+    for k, disc in enumerate(people):
+        if k < len(rows):
+            disc.set_center(rows[k, :2])
+            disc.set_radius(rows[k, 2])
+        disc.set_visible(k < len(rows))
+
+
 def robot_animation(run: Any, fps: float = 10.0, speed: float = 1.0, max_frames: int = MAX_FRAMES,
                     dpi: int = 80) -> tuple[Any, animation.FuncAnimation, dict[str, Any]]:
     """(figure, animation, facts): the animation of one ``RobotRun``, not yet written.
@@ -171,7 +246,8 @@ def robot_animation(run: Any, fps: float = 10.0, speed: float = 1.0, max_frames:
         where.plot(*run.goal, "*", color="gold", mec="black", mew=0.5, ms=14 if where is ax else 8, label="goal")
     plan_line, = ax.plot([], [], "--", color="tab:blue", lw=1.3, label="its plan (/plan)") if run.plans else (None,)
     scan_dots, = ax.plot([], [], ".", color="tab:orange", ms=3, label="laser (/scan)") if run.scans else (None,)
-    trail, = ax.plot([], [], "-", color="tab:purple", lw=1.6, label="driven (/odom)")
+    people = _draw_hazards(ax, run)
+    trail, = ax.plot([], [], "-", color=TRAIL_COLOR, lw=1.6, label="driven (/odom)")
     body = Polygon(_footprint(*run.poses[0, 1:4]), closed=True, fc="tab:cyan", ec="black", lw=0.8, zorder=5,
                    label="pioneer2dx")
     ax.add_patch(body)
@@ -185,7 +261,8 @@ def robot_animation(run: Any, fps: float = 10.0, speed: float = 1.0, max_frames:
                        bbox=dict(fc="mistyrose" if failed else "honeydew", ec="0.5"))
     if outcome is not None and outcome.detail:
         detail.set_text(textwrap.fill(outcome.detail, 30, max_lines=9))
-    _freeze_background(fig, [a for a in (plan_line, scan_dots, trail, body, heading, marker, clock, detail) if a])
+    _freeze_background(fig, [a for a in (plan_line, scan_dots, trail, body, heading, marker, clock, detail) if a]
+                       + people)
     ts = run.poses[:, 0]
     total = float(ts[-1])
 
@@ -203,12 +280,14 @@ def robot_animation(run: Any, fps: float = 10.0, speed: float = 1.0, max_frames:
         if plan_line is not None:
             plan = _latest(run.plans, t)
             plan_line.set_data(*(plan.T if plan is not None else ([], [])))
+        if people:
+            _place_people(people, _latest(run.markers, t))
         decided = k == len(times) - 1 or (t_verdict is not None and t >= t_verdict)
         marker.set_visible(decided and point is not None)
         detail.set_visible(decided and bool(detail.get_text()))
         clock.set_text(f"t = {t:5.1f} s of {total:.1f} s\n(simulated; {played:.3g}x)"
                        + (f"\n{verdict[:30]}" if decided else ""))
-        return trail, body, heading, marker, detail, clock
+        return (trail, body, heading, marker, detail, clock, *people)
 
     anim = animation.FuncAnimation(fig, draw, frames=len(times) + hold, blit=False, repeat=False)
     facts = {"frames": len(times), "hold_frames": hold, "fps": fps, "playback": played, "duration_s": total,

@@ -2,10 +2,12 @@
 
 robot: walls, the A* route's waypoints, the driven trajectory (coloured by time) and the failure
 point; vehicle: the road's two lanes, the car's path and the failure point; thermostat: the
-schedule, the true and the measured room temperature, heater-on periods and the worst error.
+schedule, the true and the measured room temperature, heater-on periods, the ideal controller's
+run (the reference) and the worst error.
 """
 from __future__ import annotations
 
+import textwrap
 from typing import Any
 
 import matplotlib
@@ -21,7 +23,7 @@ def _title(problem: Any, outcome: Any, system: str = "full model") -> str:
     if outcome.failure_kind == "invalid_test":
         return f"{problem.name}: INVALID TEST, not a failure\n{outcome.detail}"
     verdict = f"FAILED: {outcome.failure_kind}" if outcome.failed else "passed"
-    return f"{problem.name} {system} {verdict}\n{outcome.detail}"
+    return f"{problem.name} {system} {verdict}\n" + textwrap.fill(outcome.detail, 130, max_lines=3)
 
 
 def _mark_failure(ax, outcome: Any) -> None:
@@ -32,6 +34,7 @@ def _mark_failure(ax, outcome: Any) -> None:
 
 def _robot(problem, scenario, outcome, ax) -> None:
     from ..sims.robot import RobotSimConfig, plan_route
+    from .robot import draw_hazards
 
     env = problem.environment(scenario)
     res = env.resolution
@@ -43,7 +46,7 @@ def _robot(problem, scenario, outcome, ax) -> None:
     config = RobotSimConfig(radius=float(metrics.get("radius", defaults.radius)),
                             reference=metrics.get("route", "clearance") != "astar",  # the route it drove
                             clearance_margin=float(metrics.get("reference_clearance_margin_m", defaults.clearance_margin)))
-    waypoints, _ = plan_route(env.grid, res, problem.config.start, problem.config.goal, config, problem.config.diagonal)
+    waypoints, _ = plan_route(env.grid, res, env.start, env.goal, config, problem.config.diagonal)
     if len(waypoints):
         ax.plot(waypoints[:, 0], waypoints[:, 1], "--o", color="tab:blue", lw=1, ms=3, label="route")
     traj = outcome.trajectory
@@ -57,6 +60,7 @@ def _robot(problem, scenario, outcome, ax) -> None:
     ax.plot(*env.goal_m, "*", color="tab:red", ms=13, label="goal")
     ax.set_xlim(0, w * res)
     ax.set_ylim(0, h * res)
+    draw_hazards(ax, env, t=float(outcome.timeline["t"][-1]) if outcome.timeline and env.unmapped else None)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_aspect("equal")
@@ -87,6 +91,19 @@ def _vehicle(problem, scenario, outcome, ax) -> None:
     ax.set_aspect("equal")
 
 
+def _ideal_temperature(problem, scenario, tl) -> tuple[np.ndarray, np.ndarray] | None:
+    """The reference's run on the same schedule and room (hours, air temperature), or None when the
+    timeline is not a full-model run's (e.g. a stack's samples)."""
+    from ..sims.reference.thermostat import ideal_run
+    from ..sims.room import RoomSimConfig
+
+    t = np.asarray(tl["t"], dtype=float)
+    if len(t) < 2 or not hasattr(problem.config, "room_conditions"):
+        return None
+    run = ideal_run(problem, scenario, RoomSimConfig(dt=float(t[1] - t[0])))
+    return np.asarray(run["timeline"]["t"]) / 3600.0, np.asarray(run["timeline"]["temperature"])
+
+
 def _thermostat(problem, scenario, outcome, ax) -> None:
     tl = outcome.timeline or {}
     if not tl:
@@ -100,6 +117,9 @@ def _thermostat(problem, scenario, outcome, ax) -> None:
         ax.axvspan(hours[a], hours[min(b, len(hours) - 1)], color="tab:orange", alpha=0.15, lw=0)
     ax.step(hours, tl["setpoint"], where="post", color="tab:blue", lw=1.8, label="goal (schedule)")
     ax.plot(hours, tl["measured"], color="0.6", lw=0.6, label="sensor")
+    ideal = _ideal_temperature(problem, scenario, tl)
+    if ideal is not None:
+        ax.plot(ideal[0], ideal[1], "--", color="tab:green", lw=1.0, label="ideal controller (reference)")
     ax.plot(hours, tl["temperature"], color="tab:red", lw=1.2, label="room")
     ax.fill_between([], [], color="tab:orange", alpha=0.15, label="heater on")
     ax.set_xlabel("time [h]")
@@ -142,15 +162,17 @@ def save_execution_plot(problem: Any, scenario: Any, outcome: Any, path, plan: A
 __all__ = ["plot_execution", "save_execution_plot"]
 
 
-def save_side_by_side(problem: Any, runs: list[tuple[Any, Any]], path, title: str) -> Any:
-    """Executed scenarios side by side in one PNG (two failures counted as one, say); returns the path."""
+def save_side_by_side(problem: Any, runs: list[tuple[Any, Any]], path, title: str,
+                      systems: list[str] | None = None) -> Any:
+    """Executed scenarios side by side in one PNG (two failures counted as one, say); returns the
+    path. ``systems`` names who drove each (default: the full model)."""
     from pathlib import Path
 
     wide = problem.name == "thermostat"
     fig, axes = plt.subplots(len(runs), 1, figsize=(10, 3.8 * len(runs)), layout="constrained") if wide else \
         plt.subplots(1, len(runs), figsize=(6.5 * len(runs), 6.2), layout="constrained")
-    for ax, (scenario, outcome) in zip(np.atleast_1d(axes), runs):
-        plot_execution(problem, scenario, outcome, ax=ax)
+    for k, (ax, (scenario, outcome)) in enumerate(zip(np.atleast_1d(axes), runs)):
+        plot_execution(problem, scenario, outcome, ax=ax, system=systems[k] if systems else "full model")
     fig.suptitle(title, fontsize=10)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

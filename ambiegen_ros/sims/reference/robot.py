@@ -31,9 +31,12 @@ map without one is an invalid test.
   a route that squeezes out of it.
 
 ``before`` answers ``clearance_route``: passed with the route as evidence (the simulator drives
-it), or not passed, "no route keeps 0.36 m from the walls". There is no ``after`` hook: on a map
-with a clearance route the robot's failure is its own (the route exists; a robot that keeps it
-passes), so the route's existence is the whole reference.
+it), or not passed, "no route keeps 0.36 m from the walls". On the paper's maps ``after`` has
+nothing to add: on a map with a clearance route the robot's failure is its own (the route exists;
+a robot that keeps it passes), so the route's existence is the whole reference. Hazards scenarios
+(issue 48) check the route on the map the robot is given and in the true world (unmapped boxes
+and posts kept clear too), and with walking people ``after`` drives the patient reference
+(``robot_patient``).
 
 Speed (``bench/robot_route.py``, 20 sampled replication maps + an empty room, 500 x 500 fine
 cells each): median 0.37 s, worst 0.48 s on the shared 2-core machine at load 6 (median 0.83 s
@@ -44,7 +47,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -116,10 +119,13 @@ def clearance_field(grid: np.ndarray, resolution: float, fine: float) -> np.ndar
     return dist[1::2, 1::2]
 
 
-def _wall_distance(grid: np.ndarray, resolution: float, points: np.ndarray, required: float) -> np.ndarray:
-    """Exact distance of points to the walls (outside = wall), capped beyond ``required`` + a cell."""
+def _wall_distance(grid: np.ndarray, resolution: float, points: np.ndarray, required: float,
+                   extra: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> np.ndarray:
+    """Exact distance of points to the walls (outside = wall), capped beyond ``required`` + a cell;
+    with ``extra`` (x, y -> distances: obstacles not on the grid) the nearer of the two."""
     cells = int(math.ceil(required / resolution)) + 1
-    return clearances(pad_grid(grid), resolution, points[:, 0], points[:, 1], cells, origin=(-resolution, -resolution))
+    out = clearances(pad_grid(grid), resolution, points[:, 0], points[:, 1], cells, origin=(-resolution, -resolution))
+    return out if extra is None else np.minimum(out, extra(points[:, 0], points[:, 1]))
 
 
 def _samples(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -128,20 +134,22 @@ def _samples(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a + s * (b - a)
 
 
-def polyline_clearance(grid: np.ndarray, resolution: float, waypoints: np.ndarray, required: float) -> float:
-    """The least wall distance along a polyline, sampled every ``SEGMENT_STEP``."""
+def polyline_clearance(grid: np.ndarray, resolution: float, waypoints: np.ndarray, required: float,
+                       extra: Callable | None = None) -> float:
+    """The least wall (and ``extra`` obstacle) distance along a polyline, sampled every ``SEGMENT_STEP``."""
     pts = np.concatenate([_samples(a, b) for a, b in zip(waypoints[:-1], waypoints[1:])]) if len(waypoints) > 1 \
         else np.asarray(waypoints, dtype=float)
-    return float(_wall_distance(grid, resolution, pts, required).min())
+    return float(_wall_distance(grid, resolution, pts, required, extra).min())
 
 
-def _pull_tight(grid: np.ndarray, resolution: float, pts: np.ndarray, required: float) -> np.ndarray:
+def _pull_tight(grid: np.ndarray, resolution: float, pts: np.ndarray, required: float,
+                extra: Callable | None = None) -> np.ndarray:
     """From each kept vertex, the farthest later one reachable by a segment keeping ``required``
     (galloping then bisecting; every accepted segment is checked, only adjacent points pass
     unchecked), then any vertex whose neighbours see each other dropped."""
 
     def clear(i: int, j: int) -> bool:
-        return bool(_wall_distance(grid, resolution, _samples(pts[i], pts[j]), required).min() >= required - EPS)
+        return bool(_wall_distance(grid, resolution, _samples(pts[i], pts[j]), required, extra).min() >= required - EPS)
 
     keep, i, last = [0], 0, len(pts) - 1
     while i < last:
@@ -175,20 +183,27 @@ def _pull_tight(grid: np.ndarray, resolution: float, pts: np.ndarray, required: 
 
 
 def plan_clearance_route(grid: np.ndarray, resolution: float, start_xy: tuple[float, float],
-                         goal_xy: tuple[float, float], required: float, route_resolution: float = 0.1) -> ClearanceRoute:
-    """The shortest route from ``start_xy`` to ``goal_xy`` keeping ``required`` m from every wall (module docstring)."""
+                         goal_xy: tuple[float, float], required: float, route_resolution: float = 0.1,
+                         extra: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> ClearanceRoute:
+    """The shortest route from ``start_xy`` to ``goal_xy`` keeping ``required`` m from every wall
+    (module docstring) and, with ``extra`` (x, y -> distance), from the obstacles it measures."""
     from scipy.sparse.csgraph import dijkstra
 
     grid = np.asarray(grid, dtype=bool)
     fine = fine_size(resolution, route_resolution)
     none = lambda reason: ClearanceRoute(np.zeros((0, 2)), math.inf, required, None, reason, fine)  # noqa: E731
     ends = np.array([start_xy, goal_xy], dtype=float)
-    own = _wall_distance(grid, resolution, ends, required)
+    own = _wall_distance(grid, resolution, ends, required, extra)
+    what = "the walls" if extra is None else "the walls and obstacles"
     for name, xy, d in zip(("start", "goal"), ends, own):
         if d < required - EPS:
-            return none(f"the {name} ({xy[0]:.2f}, {xy[1]:.2f}) keeps only {d:.2f} m from the walls, "
+            return none(f"the {name} ({xy[0]:.2f}, {xy[1]:.2f}) keeps only {d:.2f} m from {what}, "
                         f"less than the {required:.2f} m required")
-    free = clearance_field(grid, resolution, fine) >= required - EPS
+    field = clearance_field(grid, resolution, fine)
+    if extra is not None:
+        fy, fx = np.mgrid[0:field.shape[0], 0:field.shape[1]]
+        field = np.minimum(field, extra(((fx + 0.5) * fine).ravel(), ((fy + 0.5) * fine).ravel()).reshape(field.shape))
+    free = field >= required - EPS
     Hf, Wf = free.shape
     nodes = []
     for xy in ends:  # the fine cell holding the point, else its nearest free neighbour
@@ -197,21 +212,21 @@ def plan_clearance_route(grid: np.ndarray, resolution: float, start_xy: tuple[fl
                 if 0 <= jj < Hf and 0 <= ii < Wf and free[jj, ii]]
         near.sort(key=lambda c: (c != (j, i), math.hypot((c[1] + 0.5) * fine - xy[0], (c[0] + 0.5) * fine - xy[1])))
         if not near:
-            return none(f"no route keeps {required:.2f} m from the walls")
+            return none(f"no route keeps {required:.2f} m from {what}")
         nodes.append(near[0][0] * Wf + near[0][1])
     dist, pred = dijkstra(grid_graph(~free[None], "both_free"), indices=nodes[0], return_predecessors=True)
     if not np.isfinite(dist[nodes[1]]):
-        return none(f"no route keeps {required:.2f} m from the walls")
+        return none(f"no route keeps {required:.2f} m from {what}")
     chain = [nodes[1]]
     while chain[-1] != nodes[0]:
         chain.append(int(pred[chain[-1]]))
     chain = np.asarray(chain[::-1])
     centres = np.column_stack([(chain % Wf + 0.5) * fine, (chain // Wf + 0.5) * fine])
     pts = np.concatenate([ends[:1], centres, ends[1:]])
-    waypoints = _pull_tight(grid, resolution, pts, required)
+    waypoints = _pull_tight(grid, resolution, pts, required, extra)
     length = float(np.hypot(*np.diff(waypoints, axis=0).T).sum())
-    return ClearanceRoute(waypoints, length, required, polyline_clearance(grid, resolution, waypoints, required), "",
-                          fine)
+    return ClearanceRoute(waypoints, length, required,
+                          polyline_clearance(grid, resolution, waypoints, required, extra), "", fine)
 
 
 def route_for(grid: np.ndarray, resolution: float, start: tuple[int, int], goal: tuple[int, int],
@@ -223,9 +238,13 @@ def route_for(grid: np.ndarray, resolution: float, start: tuple[int, int], goal:
 
 
 def before(problem: Any, scenario: Any, config: Any) -> ReferenceVerdict:
-    """Passed when a clearance route joins the problem's start and goal; it is the route driven."""
+    """Passed when a clearance route joins the scenario's start and goal; it is the route driven.
+
+    Hazards scenarios (issue 48): the route must exist on the map the robot is given (what it
+    plans on) and in the true world, whose unmapped boxes and posts it also keeps clear of (what
+    the reference drives)."""
     env = problem.environment(scenario)
-    route = route_for(env.grid, env.resolution, problem.config.start, problem.config.goal, config)
+    route = route_for(env.grid, env.resolution, env.start, env.goal, config)
     metrics = {
         "route_length_m": route.length if route.found else None,
         "clearance_m": route.required,
@@ -235,9 +254,60 @@ def before(problem: Any, scenario: Any, config: Any) -> ReferenceVerdict:
         "route_resolution_m": route.fine,
         "route_waypoints": int(len(route.waypoints)),
     }
-    return ReferenceVerdict(route.found, "clearance_route", route.reason, metrics,
-                            {"route": route.waypoints} if route.found else {})
+    evidence = {"route": route.waypoints} if route.found else {}
+    if not getattr(problem, "hazards", False):
+        return ReferenceVerdict(route.found, "clearance_route", route.reason, metrics, evidence)
+    if not route.found:
+        return ReferenceVerdict(False, "clearance_route", f"on the map the robot is given: {route.reason}", metrics)
+    true = true_route(problem, scenario, env, config)
+    metrics["true_route_length_m"] = true.length if true.found else None
+    if not true.found:
+        return ReferenceVerdict(False, "clearance_route", f"in the world, unmapped obstacles included: {true.reason}",
+                                metrics)
+    return ReferenceVerdict(True, "clearance_route", "", metrics, evidence)
 
 
-__all__ = ["ClearanceRoute", "SEGMENT_STEP", "before", "clearance_field", "fine_size", "footprint_radius",
+_TRUE_ROUTES: dict = {}  # the last few true-world routes (``before`` and ``after`` ask for the same)
+
+
+def true_route(problem: Any, scenario: Any, env: Any, config: Any) -> ClearanceRoute:
+    """The clearance route of a hazards scenario's true world: walls and unmapped boxes and posts."""
+    from ..obstacles import Obstacles
+
+    key = (scenario.to_json(indent=None), required_clearance(config), float(config.route_resolution))
+    if key not in _TRUE_ROUTES:
+        obstacles = Obstacles.from_dict(env.unmapped) if env.unmapped else Obstacles()
+        static = len(obstacles.posts) or len(obstacles.boxes)
+        centre = lambda c: ((c[0] + 0.5) * env.resolution, (c[1] + 0.5) * env.resolution)  # noqa: E731
+        if len(_TRUE_ROUTES) >= 8:
+            _TRUE_ROUTES.pop(next(iter(_TRUE_ROUTES)))
+        _TRUE_ROUTES[key] = plan_clearance_route(env.grid, env.resolution, centre(env.start), centre(env.goal),
+                                                 key[1], key[2], obstacles.static_distance if static else None)
+    return _TRUE_ROUTES[key]
+
+
+def after(problem: Any, scenario: Any, config: Any, outcome: Any, seed: int = 0) -> ReferenceVerdict | None:
+    """Hazards scenarios with people: does the patient reference (``robot_patient``), knowing every
+    person's path, reach the goal along the true route? Without people (and on the paper's maps)
+    the route's existence is the whole reference: None keeps ``before``'s word."""
+    if not getattr(problem, "hazards", False):
+        return None
+    from ..obstacles import Obstacles
+    from .robot_patient import patient_run
+
+    env = problem.environment(scenario)
+    obstacles = Obstacles.from_dict(env.unmapped) if env.unmapped else Obstacles()
+    if not obstacles.people:
+        return None
+    true = true_route(problem, scenario, env, config)
+    if not true.found:
+        return ReferenceVerdict(False, "patient_robot", f"in the world, unmapped obstacles included: {true.reason}")
+    limit = (outcome.metrics or {}).get("time_limit") or config.time_limit(true.length)
+    run = patient_run(true.waypoints, obstacles.people, env.start_yaw or 0.0, env.goal_yaw, config, float(limit))
+    metrics = {"patient_time_s": run.time, "patient_waited_s": run.waited,
+               "patient_contacts_not_at_fault": run.contacts_not_at_fault, "true_route_length_m": true.length}
+    return ReferenceVerdict(run.passed, "patient_robot", run.reason, metrics)
+
+
+__all__ = ["ClearanceRoute", "SEGMENT_STEP", "after", "before", "true_route", "clearance_field", "fine_size", "footprint_radius",
            "plan_clearance_route", "polyline_clearance", "required_clearance", "route_for"]

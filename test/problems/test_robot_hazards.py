@@ -1,0 +1,173 @@
+"""Robot hazards scenarios (issue 48): the matrix (walls, start, goal, boxes, posts, people), where
+hazards sit relative to the route, the scenario's own rules, and a search that keeps every element
+in its kind."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ambiegen_ros.core.attributes import ScenarioError
+from ambiegen_ros.core.search import Search, SearchSettings
+from ambiegen_ros.problems import get_problem
+from ambiegen_ros.problems import robot_hazards as hz
+from ambiegen_ros.ros import conversions
+from ambiegen_ros.ros.types import get_registry
+
+def cross(a, b) -> float:
+    return float(a[0] * b[1] - a[1] * b[0])
+
+
+OPEN_WALLS = [{"type": "vertical", "size": 5, "position": 48} for _ in range(48)]  # all on the far column
+FILLER = {"size": 5, "position": 1, "row": 1, "along": 0, "offset": 0, "heading": 0, "extent": 0, "speed": 0.3,
+          "delay": 0.0}
+
+
+def element(kind: str, **values) -> dict:
+    return {**FILLER, "type": kind, **values}
+
+
+def scenario(problem, start=(2, 2, 45), goal=(14, 14, 0), hazards=(), walls=None) -> object:
+    els = [{**FILLER, **w} for w in (walls or OPEN_WALLS)]
+    els.append(element("start", position=start[0], row=start[1], heading=start[2]))
+    els.append(element("goal", position=goal[0], row=goal[1], heading=goal[2]))
+    els += [element(k, **v) for k, v in hazards]
+    return problem.parse({"problem": "robot", "elements": els})
+
+
+@pytest.fixture(scope="module")
+def problem():
+    return get_problem("robot", {"profile": "refined", "scenario": "hazards", "goal": [14, 14],
+                                 "start_area": [[1, 1], [4, 4]]})
+
+
+def test_hazards_need_the_refined_profile():
+    with pytest.raises(ScenarioError, match="refined"):
+        get_problem("robot", {"scenario": "hazards"})
+    with pytest.raises(ScenarioError, match="scenario"):
+        get_problem("robot", {"profile": "refined", "scenario": "crowds"})
+
+
+def test_sampled_scenarios_keep_every_kind_in_its_place(problem):
+    G, lengths = problem.sample(200, np.random.default_rng(4))
+    for i in range(len(G)):
+        assert hz.kind_reason(G[i], int(lengths[i]), problem.config) is None
+    kinds = np.rint(G[:, :, hz.TYPE]).astype(int)
+    assert set(kinds[:, :48].ravel()) == {hz.HORIZONTAL, hz.VERTICAL}
+    assert (kinds[:, hz.START_ROW] == hz.START).all() and (kinds[:, hz.GOAL_ROW] == hz.GOAL).all()
+    hazards = {int(kinds[i, j]) for i in range(len(G)) for j in range(hz.FIRST_HAZARD, int(lengths[i]))}
+    assert hazards == {hz.BOX, hz.POST, hz.PERSON}
+    assert set(lengths.tolist()) == set(range(hz.FIRST_HAZARD, hz.FIRST_HAZARD + 7))  # 0..6 hazards
+    ev = problem.evaluate(G, lengths)
+    assert 0.3 < ev.valid.mean() < 0.95  # most fail only for a map without a route
+    assert ev.metrics["people"][ev.valid].sum() > 0 and ev.metrics["boxes"][ev.valid].sum() > 0
+
+
+def test_hazards_sit_where_the_route_says(problem):
+    """A box at 50 % of the route lies on its middle; a post 1.5 m to the left of its middle lies
+    to the left of the direction of travel; a person walks through its point at the heading given."""
+    sc = scenario(problem, hazards=[("box", {"along": 50, "offset": 0, "extent": 50}),
+                                    ("post", {"along": 50, "offset": 15, "extent": 0}),
+                                    ("person", {"along": 50, "offset": 0, "heading": 90, "extent": 0, "speed": 1.0,
+                                                "delay": 5.0})])
+    env = problem.environment(sc)
+    route = hz.PlacementRoute(np.asarray(env.path_m))
+    mid, direction = route.at(0.5)
+    (x0, y0, x1, y1), = env.unmapped["boxes"]
+    assert (x0 + x1) / 2 == pytest.approx(mid[0]) and (y0 + y1) / 2 == pytest.approx(mid[1])
+    assert x1 - x0 == pytest.approx(0.65)  # 50 % of 0.3..1.0 m
+    (px, py, r), = env.unmapped["posts"]
+    assert r == pytest.approx(0.025)
+    left = cross(direction, np.array([px, py]) - mid)
+    assert left > 0 and math.hypot(px - mid[0], py - mid[1]) == pytest.approx(1.5)
+    person, = env.unmapped["people"]
+    a, b = np.asarray(person["path"])
+    walk = (b - a) / np.linalg.norm(b - a)
+    assert np.dot(walk, direction) == pytest.approx(0.0, abs=1e-9)  # crossing, right to left
+    assert cross(direction, walk) > 0
+    t = np.dot(mid - a, walk)  # the path passes through the route's middle
+    assert np.linalg.norm(a + t * walk - mid) < 1e-9
+    assert (person["speed"], person["delay"], person["radius"]) == (1.0, 5.0, 0.2)
+
+
+def test_start_and_goal_poses_reach_the_stack_with_their_yaw(problem):
+    sc = scenario(problem, start=(3, 2, 180), goal=(13, 15, 270))
+    env = problem.environment(sc)
+    assert env.start == (3, 2) and env.goal == (13, 15)
+    assert env.start_yaw == pytest.approx(math.pi) and env.goal_yaw == pytest.approx(1.5 * math.pi)
+    reg = get_registry()
+    msg = conversions.scenario_message(reg.new, 0, problem, sc, conversions.ScenarioMeta("r", 0))
+    assert conversions.yaw_of(msg.start.pose.orientation) == pytest.approx(math.pi)
+    assert conversions.yaw_of(msg.goal.pose.orientation) % (2 * math.pi) == pytest.approx(1.5 * math.pi)
+    # the map the stack is given holds the walls and nothing else
+    hazardous = scenario(problem, start=(3, 2, 180), goal=(13, 15, 270),
+                         hazards=[("box", {"along": 50, "extent": 100})])
+    msg2 = conversions.scenario_message(reg.new, 0, problem, hazardous, conversions.ScenarioMeta("r", 1))
+    assert np.array_equal(np.asarray(msg.map.data), np.asarray(msg2.map.data))
+
+
+@pytest.mark.parametrize("hazard, reason", [
+    (("box", {"along": 0, "extent": 100}), "box 0 lies within 0.6 m of the start"),
+    (("post", {"along": 100, "offset": 2}), "post 0 lies within 0.6 m of the goal"),
+])
+def test_nothing_may_sit_on_the_start_or_the_goal(problem, hazard, reason):
+    ev = problem.evaluate_scenarios([scenario(problem, hazards=[hazard])])
+    assert not ev.valid[0] and ev.reasons[0] == f"hazards: {reason}"
+
+
+def test_a_start_outside_its_area_or_a_wall_in_the_wrong_place_is_invalid(problem):
+    assert "outside start_area" in problem.evaluate_scenarios([scenario(problem, start=(6, 2, 0))]).reasons[0]
+    els = scenario(problem).to_dict()["elements"]
+    els[3] = element("person")
+    ev = problem.evaluate_scenarios([problem.parse({"problem": "robot", "elements": els})])
+    assert ev.reasons[0] == "hazards: elements[3] must be a wall (horizontal|vertical), not person"
+
+
+def test_people_stop_short_of_the_walls(problem):
+    """A person walking along a wall is cut where its disc would touch it."""
+    walls = list(OPEN_WALLS)
+    walls[7] = {"type": "horizontal", "size": 15, "position": 10}  # row 8: x 3..17
+    sc = scenario(problem, walls=walls, hazards=[("person", {"along": 40, "heading": 90, "extent": 100})])
+    env = problem.environment(sc)
+    person, = env.unmapped["people"]
+    pts = np.asarray(person["path"])
+    grid = env.grid
+    assert (hz.wall_distance(grid, 1.0, pts) >= person["radius"] - 1e-9).all()
+
+
+def test_the_search_keeps_every_element_in_its_kind(problem):
+    settings = SearchSettings(algorithm="nsga2", evaluations=300, population=30, offspring=30, seed=2)
+    search = Search(problem, settings)
+    result = search.run()
+    for entry in result.suite:
+        sc = problem.parse(entry["scenario"])
+        G, lengths = problem.codec.split(problem.codec.to_row(sc))
+        assert hz.kind_reason(G[0], int(lengths[0]), problem.config) is None
+    assert result.best_f1 > 0
+
+
+def test_the_threat_score_rises_with_what_breaks_stacks(problem):
+    """objective: threat (issue 49): an obstacle on the route, a person meeting the robot there and a
+    goal turned away from the last leg each raise F1; the features say which and by how much."""
+    threat = get_problem("robot", {**problem.config_dict(), "objective": "threat"})
+    along = (14, 14, 45)  # the goal faces along the last leg
+    plain = scenario(threat, goal=along)
+    on_route = scenario(threat, goal=along, hazards=[("box", {"along": 50, "extent": 50})])
+    aside = scenario(threat, goal=along, hazards=[("box", {"along": 50, "offset": 25, "extent": 50})])
+    meeting = scenario(threat, goal=along, hazards=[("person", {"along": 50, "heading": 90, "extent": 50, "speed": 1.5,
+                                                    "delay": 15.0})])
+    late = scenario(threat, goal=along, hazards=[("person", {"along": 50, "heading": 90, "extent": 50, "speed": 1.5,
+                                                 "delay": 60.0})])
+    turned = scenario(threat, goal=(14, 14, 225))
+    f1 = dict(zip(("plain", "on_route", "aside", "meeting", "late", "turned"),
+                  threat.evaluate_scenarios([plain, on_route, aside, meeting, late, turned]).f1))
+    assert f1["plain"] == pytest.approx(0.0)
+    assert f1["on_route"] > f1["aside"] >= 0.0
+    assert f1["meeting"] > f1["late"]
+    assert f1["turned"] == pytest.approx(0.5, abs=0.01)  # a goal turned 180 degrees in the open
+    feats = threat.hazard_features(meeting)
+    assert feats["person_meet_s"] < 0.5 and feats["goal_turn_rad"] == pytest.approx(0.0)
+    assert threat.hazard_features(turned)["goal_turn_rad"] == pytest.approx(math.pi)
+    with pytest.raises(ScenarioError, match="threat"):
+        get_problem("robot", {"profile": "refined", "objective": "threat"})
