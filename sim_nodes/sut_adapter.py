@@ -42,7 +42,8 @@ To the generator it is one more sim worker (heartbeats on ``/ambiegen/workers``,
   that needed any is a near miss, and its detail says so. A failure that matches an entry of
   ``known_failures`` (a YAML file, ``ambiegen_ros.sims.known_failures``; the Nav2 launch passes
   ``config/nav2/known_failures.yaml``, NavFn's path cap) is recorded as FAIL(kind, known: name),
-  ``metrics["known_failure"]``, and not counted among new distinct failures.
+  ``metrics["known_failure"]``, and not counted among new distinct failures. A failed hazards run
+  records how far it ended from the nearest unmapped box or post (``metrics["unmapped_obstacle_m"]``).
 * ``vehicle``: the road on ``road_topic`` (``nav_msgs/Path``, latched); watches ``odom_topic``
   (pose = centre of the car's bounding box).
 * ``thermostat``: set points on ``setpoint_topic`` (``std_msgs/Float64``), each when its
@@ -87,6 +88,7 @@ from ambiegen_ros.ros import conversions, topics
 from ambiegen_ros.ros.qos import DEFAULT, LATCHED, STREAM, Qos
 from ambiegen_ros.sims import Outcome, known_failures, reference
 from ambiegen_ros.sims.full_model import FullModelExecutor, sim_config
+from ambiegen_ros.sims.obstacles import Obstacles
 from ambiegen_ros.sims.oracles import CarJudge, RobotJudge, ThermostatJudge, warm_up_judge
 from ambiegen_ros.sims.robot import polyline_length
 from ambiegen_ros.sims.stamp_order import DECISION, STATE, StampOrder
@@ -671,13 +673,19 @@ class SutAdapter:
         if self.reference and outcome.failed:  # does the in-process reference pass the same scenario?
             outcome = reference.certify(outcome, reference.after(self.problem, job.scenario, self.oracle, outcome)
                                         or job.before)
+        hazards = self.problem_name == "robot" and getattr(self.problem, "hazards", False)
+        if hazards and outcome.failed:  # evidence for a known failure: an unmapped obstacle where it failed
+            where = outcome.failure_point or (None if outcome.trajectory is None or not len(outcome.trajectory)
+                                              else tuple(outcome.trajectory[-1][:2]))
+            unmapped = Obstacles.from_dict(self.problem.environment(job.scenario).unmapped or {})
+            outcome.metrics = {**outcome.metrics, "unmapped_obstacle_m": unmapped.nearest_static_m(where)}
         if self.known_failures and outcome.failed:
             outcome = known_failures.mark(outcome, self.known_failures)
         wall = time.monotonic() - job.started
         outcome.elapsed_sec = wall
         outcome.metrics = {**outcome.metrics, "valid": job.valid, "reason": job.reason, "wall_s": wall,
                            "time_scale": self.time_scale, "stamp_clock": self.stamp_clock}
-        if self.problem_name == "robot" and getattr(self.problem, "hazards", False):
+        if hazards:
             outcome.metrics["contacts_not_at_fault"] = job.contacts_not_at_fault
         self.publish(job.run_id, job.scenario_id, outcome)
         self.node.logger.info(f"scenario {job.scenario_id}: {outcome.failure_kind} ({outcome.detail}) in {wall:.2f} s")

@@ -8,7 +8,10 @@ URL), and the facts a failure must show to be it:
 * ``kinds``: the failure kinds it shows as (e.g. ``nav2_aborted``, ``stall``, ``timeout``);
 * ``no_plan: true``: the stack published no plan after the goal (``metrics["plans"] == 0``);
 * ``route_over_map_side: f``: the clearance route is longer than ``f`` x the map's longer side
-  (``metrics["route_length_m"]``, ``metrics["map_side_m"]``, from the robot oracle).
+  (``metrics["route_length_m"]``, ``metrics["map_side_m"]``, from the robot oracle);
+* ``nav2_error_codes``: Nav2's error code is one of these (``metrics["nav2_error_code"]``);
+* ``unmapped_obstacle_within: d``: a box or post that is not in the map lies within ``d`` m of
+  where the run failed (``metrics["unmapped_obstacle_m"]``, hazards scenarios: ``sut_adapter``).
 
 Every condition given must hold. ``config/nav2/known_failures.yaml`` ships NavFn's path cap.
 """
@@ -20,7 +23,8 @@ from typing import Any
 
 from .outcome import Outcome
 
-FIELDS = ("name", "reference", "what", "kinds", "no_plan", "route_over_map_side", "boundary")
+FIELDS = ("name", "reference", "what", "kinds", "no_plan", "route_over_map_side", "nav2_error_codes",
+          "unmapped_obstacle_within", "boundary")
 
 
 @dataclass(frozen=True)
@@ -32,6 +36,8 @@ class KnownFailure:
     no_plan: bool = False
     route_over_map_side: float | None = None
     boundary: str = ""  # where it was measured to start, for the reader
+    nav2_error_codes: tuple[int, ...] = ()
+    unmapped_obstacle_within: float | None = None
 
     def matches(self, outcome: Outcome) -> bool:
         m = outcome.metrics or {}
@@ -45,7 +51,21 @@ class KnownFailure:
             route, side = m.get("route_length_m"), m.get("map_side_m")
             if route in (None, "None") or not side or float(route) <= self.route_over_map_side * float(side):
                 return False
+        if self.nav2_error_codes and _number(m.get("nav2_error_code")) not in self.nav2_error_codes:
+            return False
+        if self.unmapped_obstacle_within is not None:
+            near = _number(m.get("unmapped_obstacle_m"), float)
+            if near is None or near > self.unmapped_obstacle_within:
+                return False
         return True
+
+
+def _number(value: Any, kind: type = int) -> Any:
+    """A metric as a number (a logged result holds its text), or None."""
+    try:
+        return kind(float(value)) if kind is int else kind(value)
+    except (TypeError, ValueError):
+        return None
 
 
 def load(path: str | Path) -> list[KnownFailure]:
@@ -66,10 +86,12 @@ def load(path: str | Path) -> list[KnownFailure]:
         if unknown:
             raise ValueError(f"known_failures: entry {entry['name']!r}: unknown field(s) {', '.join(unknown)} "
                              f"(allowed: {', '.join(FIELDS)})")
-        ratio = entry.get("route_over_map_side")
+        ratio, near = entry.get("route_over_map_side"), entry.get("unmapped_obstacle_within")
         out.append(KnownFailure(str(entry["name"]), str(entry["reference"]), str(entry.get("what", "")),
                                 tuple(str(k) for k in entry.get("kinds") or ()), bool(entry.get("no_plan", False)),
-                                None if ratio is None else float(ratio), str(entry.get("boundary", ""))))
+                                None if ratio is None else float(ratio), str(entry.get("boundary", "")),
+                                tuple(int(c) for c in entry.get("nav2_error_codes") or ()),
+                                None if near is None else float(near)))
     return out
 
 

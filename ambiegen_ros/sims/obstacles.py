@@ -333,6 +333,12 @@ class Obstacles:
         return Obstacles(self.posts + [dx, dy, 0.0], self.boxes + [dx, dy, dx, dy],
                          tuple(Person(p.path + d, p.speed, p.delay, p.radius) for p in self.people))
 
+    def nearest_static_m(self, point: tuple[float, float] | None) -> float | None:
+        """How far ``point`` lies from the nearest post or box surface; None without either (or a point)."""
+        if point is None or (len(self.posts) == 0 and len(self.boxes) == 0):
+            return None
+        return float(self.static_distance(point[0], point[1]))
+
     def to_dict(self) -> dict:
         """Plain JSON: lists of floats, people as ``Person.to_dict``."""
         return {"posts": self.posts.tolist(), "boxes": self.boxes.tolist(),

@@ -1,5 +1,5 @@
-"""Known failures (``sims.known_failures``): NavFn's path cap, as shipped, names exactly the
-failures that show it, and a bad file is one clear line."""
+"""Known failures (``sims.known_failures``): NavFn's path cap and MPPI's stop at an unmapped
+obstacle, as shipped, name exactly the failures that show them, and a bad file is one clear line."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -13,13 +13,18 @@ from ambiegen_ros.sims.outcome import Outcome
 SHIPPED = Path(__file__).resolve().parents[2] / "config" / "nav2" / "known_failures.yaml"
 
 
+def shipped(name: str) -> known_failures.KnownFailure:
+    (entry,) = [k for k in known_failures.load(SHIPPED) if k.name == name]
+    return entry
+
+
 def failure(kind="nav2_aborted", plans=0, route=120.0, side=50.0, failed=True) -> Outcome:
     return Outcome(objectives={}, failed=failed, failure_kind=kind, detail="Nav2 aborted its goal (error 208)",
                    metrics={"plans": plans, "route_length_m": route, "map_side_m": side})
 
 
 def test_the_navfn_cap_names_a_planless_failure_past_twice_the_maps_side():
-    (cap,) = known_failures.load(SHIPPED)
+    cap = shipped("navfn_path_cap")
     assert cap.name == "navfn_path_cap" and "4655" in cap.reference
     marked = known_failures.mark(failure(route=106.0), [cap])
     assert marked.metrics["known_failure"] == "navfn_path_cap" and "known: navfn_path_cap" in marked.detail
@@ -31,6 +36,45 @@ def test_the_navfn_cap_names_a_planless_failure_past_twice_the_maps_side():
     assert known_failures.is_known(known_failures.mark(failure(plans="0", kind="stall", route=425.5), [cap]))
     logged = failure(plans="0", route="106.0", side="50.0")  # metrics as a logged result carries them: text
     assert known_failures.is_known(known_failures.mark(logged, [cap]))
+
+
+def test_mppis_stop_at_an_unmapped_obstacle_needs_error_105_next_to_a_box_or_post():
+    """The hazards search's abort (docs/results/nav2/mppi_no_progress.md): Nav2 aborted with 105
+    (no progress), the robot 0.63 m from a box not in the map. Another code, a stop far from any
+    unmapped obstacle, a run without that evidence or a person's collision is not it."""
+    stop = shipped("mppi_unmapped_obstacle_no_progress")
+    assert "6091" in stop.reference and stop.nav2_error_codes == (105,)
+
+    def aborted(code="105", near="0.52", kind="nav2_aborted"):
+        return Outcome(objectives={}, failed=True, failure_kind=kind, detail=f"Nav2 aborted its goal (error {code})",
+                       metrics={"nav2_error_code": code, "unmapped_obstacle_m": near})
+
+    assert known_failures.is_known(known_failures.mark(aborted(), [stop]))
+    assert known_failures.is_known(known_failures.mark(aborted(code=105, near=1.0), [stop]))
+    for other in (aborted(code="104"), aborted(near="1.01"), aborted(near=None), aborted(near="None"),
+                  aborted(kind="collision"), aborted(code="")):
+        assert not known_failures.is_known(known_failures.mark(other, [stop])), other.metrics
+
+
+def test_the_adapter_measures_the_stop_against_the_scenarios_unmapped_obstacles():
+    """The recorded abort (runs.jsonl, key 6d1e25f877cb689d) stopped 0.63 m from the box in its way,
+    the metric the adapter records (``Obstacles.nearest_static_m``); people do not count, no point is
+    no evidence."""
+    import json
+
+    from ambiegen_ros.problems import get_problem
+    from ambiegen_ros.sims.obstacles import Obstacles
+
+    runs = SHIPPED.parents[2] / "docs" / "results" / "nav2" / "runs.jsonl"
+    (row,) = [r for r in map(json.loads, runs.read_text().splitlines()) if r["key"] == "6d1e25f877cb689d"]
+    problem = get_problem("robot", row["problem_config"])
+    unmapped = problem.environment(problem.parse(row["scenario"])).unmapped
+    obstacles = Obstacles.from_dict(unmapped)
+    near = obstacles.nearest_static_m(tuple(row["failure_point"]))
+    assert 0.3 < near < 1.0  # within the known failure's reach, yet not inside the box
+    assert obstacles.nearest_static_m(None) is None
+    assert obstacles.nearest_static_m((0.0, 15.9)) > 1.0
+    assert Obstacles.from_dict({"people": unmapped["people"]}).nearest_static_m((0.0, 0.0)) is None
 
 
 def test_a_bad_file_is_one_clear_error(tmp_path):
@@ -61,7 +105,7 @@ def test_an_in_the_loop_search_is_not_rewarded_for_a_known_failure():
     invalid test is invalid."""
     from ambiegen_ros.nodes.generator import loop_evaluation
 
-    (cap,) = known_failures.load(SHIPPED)
+    cap = shipped("navfn_path_cap")
     known = known_failures.mark(failure(route=120.0), [cap])
     known.objectives = {"robot_time": 300.0}
     new = failure(kind="collision")
@@ -86,7 +130,7 @@ def test_the_pace_in_the_loop_ranks_a_struggle_over_a_long_easy_route():
         return Outcome(objectives={"robot_time": time}, failed=False, failure_kind="none", detail="goal reached",
                        metrics={"time": time, "time_limit": 300.0, "route_length_m": route})
 
-    (cap,) = known_failures.load(SHIPPED)
+    cap = shipped("navfn_path_cap")
     known = known_failures.mark(failure(route=120.0), [cap])
     new = failure(kind="collision", route=25.0)
     new.metrics["time_limit"] = 300.0
