@@ -308,8 +308,9 @@ def verdict_agreement(rows: list[dict]) -> list[str]:
 
 
 def known_facts(row: dict, problem) -> dict:
-    """What a known-failure entry reads of a row: the plans counted, and the clearance route and
-    map side (recorded since issue 27; planned again for older rows)."""
+    """What a known-failure entry reads of a row: the plans counted, the clearance route and map
+    side (recorded since issue 27; planned again for older rows), Nav2's error code and, on hazards
+    scenarios, how far it failed from an unmapped box or post."""
     route, side = row.get("route_length_m"), row.get("map_side_m")
     if route is None:
         from ambiegen_ros.sims import reference
@@ -319,7 +320,12 @@ def known_facts(row: dict, problem) -> dict:
         env = problem.environment(problem.parse(row["scenario"]))
         route = reference.before(problem, problem.parse(row["scenario"]), full.config).metrics["route_length_m"]
         side = float(max(env.grid.shape) * env.resolution)
-    return {"plans": row.get("plans"), "route_length_m": route, "map_side_m": side}
+    from ambiegen_ros.sims.known_failures import unmapped_obstacle_m
+
+    where = row.get("failure_point") or (row.get("trajectory_every_10") or [None])[-1]
+    return {"plans": row.get("plans"), "route_length_m": route, "map_side_m": side,
+            "nav2_error_code": row.get("nav2_error_code"),
+            "unmapped_obstacle_m": unmapped_obstacle_m(problem, problem.parse(row["scenario"]), where)}
 
 
 def report(args) -> int:

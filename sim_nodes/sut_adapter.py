@@ -88,7 +88,6 @@ from ambiegen_ros.ros import conversions, topics
 from ambiegen_ros.ros.qos import DEFAULT, LATCHED, STREAM, Qos
 from ambiegen_ros.sims import Outcome, known_failures, reference
 from ambiegen_ros.sims.full_model import FullModelExecutor, sim_config
-from ambiegen_ros.sims.obstacles import Obstacles
 from ambiegen_ros.sims.oracles import CarJudge, RobotJudge, ThermostatJudge, warm_up_judge
 from ambiegen_ros.sims.robot import polyline_length
 from ambiegen_ros.sims.stamp_order import DECISION, STATE, StampOrder
@@ -677,8 +676,8 @@ class SutAdapter:
         if hazards and outcome.failed:  # evidence for a known failure: an unmapped obstacle where it failed
             where = outcome.failure_point or (None if outcome.trajectory is None or not len(outcome.trajectory)
                                               else tuple(outcome.trajectory[-1][:2]))
-            unmapped = Obstacles.from_dict(self.problem.environment(job.scenario).unmapped or {})
-            outcome.metrics = {**outcome.metrics, "unmapped_obstacle_m": unmapped.nearest_static_m(where)}
+            outcome.metrics = {**outcome.metrics,
+                               "unmapped_obstacle_m": known_failures.unmapped_obstacle_m(self.problem, job.scenario, where)}
         if self.known_failures and outcome.failed:
             outcome = known_failures.mark(outcome, self.known_failures)
         wall = time.monotonic() - job.started

@@ -75,6 +75,21 @@ def test_a_logged_path_without_times_never_claims_seconds(robot):
     assert facts["bar_label"] != "time [s]" and facts["bar_range"] == (0.0, 13_699.0)
 
 
+def test_a_long_verdict_stays_inside_the_picture(robot):
+    """The campaign gallery's title of a person collision once ran off both sides of the PNG."""
+    from ambiegen_ros.viz.execution import plot_execution
+
+    problem, scenario = robot
+    detail = ("collision at (11.83, 14.62) after 42.1 s (reported on /collision: 'the robot drove into person 1 "
+              "at (11.99, 14.50) moving at 0.48 m/s towards it')")
+    out = Outcome({}, True, "collision", detail, trajectory=np.linspace([1.5, 1.5], [11.8, 14.6], 50))
+    ax = plot_execution(problem, scenario, out, system="Nav2 (time scale 1)")
+    ax.figure.canvas.draw()
+    box, page = ax.title.get_window_extent(), ax.figure.bbox
+    plt.close(ax.figure)
+    assert page.x0 <= box.x0 and box.x1 <= page.x1 and "towards it" in ax.get_title()
+
+
 def test_a_nav2_row_is_drawn_over_its_runs_simulated_time(monkeypatch, tmp_path):
     """``bench/nav2_maps.py`` (``--report``, ``--picture``) draws a row of ``runs.jsonl`` (every 10th
     pose) with its poses spread over the run's time: the bar ends at the run's duration."""

@@ -226,7 +226,10 @@ def features(route: PlacementRoute, layout: HazardLayout, posts: np.ndarray, box
       negative = on it); ``person_meet_s``: how near in time a person is to the point of the route
       where the robot is when it gets there (driving the route at ``speed``);
       ``start_turn_rad`` / ``goal_turn_rad``: how far the start and goal yaw turn from the route's
-      first and last leg;
+      first and last leg; ``person_approach_mps``: of the people who meet the robot within 5 s, the
+      fastest closing speed, their speed times (1 - cos) / 2 of their heading against the route's
+      (head-on = their speed, crossing = half, walking ahead = 0): MPPI's collisions with people
+      were head-on or crossing at 1.0-1.3 m/s (docs/results/nav2/mppi_hazards_search.md);
     * with ``grid`` (the mapped walls), ``threat``: their sum as a search climbs it, each weighed
       by how narrow the place is (``narrowness``: 1 where the walls leave the robot no room beside
       the route, 0.5 in the open): an obstacle on the route, a person meeting the robot there, a goal
@@ -263,7 +266,7 @@ def features(route: PlacementRoute, layout: HazardLayout, posts: np.ndarray, box
         dist, arc = to_route(centre)
         static.append(dist - reach)
         static_threat = max(static_threat, min(max(1.0 - (dist - reach) / 0.5, 0.0), 1.0) * narrow(arc))
-    meet, person_threat = [], 0.0
+    meet, person_threat, approach = [], 0.0, 0.0
     for person in people:
         a, b = np.asarray(person["path"], dtype=float)
         walk = math.hypot(*(b - a))
@@ -277,6 +280,10 @@ def features(route: PlacementRoute, layout: HazardLayout, posts: np.ndarray, box
             if gap < best:
                 best, at = gap, arc
         meet.append(best)
+        if best <= 5.0:
+            _, tangent = route.at(at / route.length if route.length > 0 else 0.0)
+            heading = float((b - a) @ tangent) / (walk or 1.0)
+            approach = max(approach, person["speed"] * (1.0 - heading) / 2.0)
         if math.isfinite(best):
             person_threat = max(person_threat,
                                 min(max(1.0 - best / 5.0, 0.0), 1.0) * narrow(at) * person["speed"] / 1.5)
@@ -287,6 +294,7 @@ def features(route: PlacementRoute, layout: HazardLayout, posts: np.ndarray, box
         "person_meet_s": float(min(meet)) if meet else math.inf,
         "start_turn_rad": abs(wrap(layout.start_yaw - math.atan2(first[1], first[0]))),
         "goal_turn_rad": goal_turn,
+        "person_approach_mps": approach,
     }
     if grid is not None:
         out["threat"] = static_threat + person_threat + goal_turn / math.pi * narrow(route.length)

@@ -68,6 +68,17 @@ def _number(value: Any, kind: type = int) -> Any:
         return None
 
 
+def unmapped_obstacle_m(problem: Any, scenario: Any, point: Any) -> float | None:
+    """How far ``point`` (where a hazards run failed) lies from the scenario's nearest unmapped box
+    or post: the evidence ``unmapped_obstacle_within`` reads. None for other scenarios or no point."""
+    from .obstacles import Obstacles
+
+    if point is None or not getattr(problem, "hazards", False):
+        return None
+    unmapped = Obstacles.from_dict(problem.environment(scenario).unmapped or {})
+    return unmapped.nearest_static_m((float(point[0]), float(point[1])))
+
+
 def load(path: str | Path) -> list[KnownFailure]:
     """The entries of a known-failures YAML file (a list); ``ValueError`` naming the bad one."""
     import yaml
@@ -108,4 +119,4 @@ def is_known(outcome: Any) -> bool:
     return bool((getattr(outcome, "metrics", None) or {}).get("known_failure"))
 
 
-__all__ = ["KnownFailure", "is_known", "load", "mark"]
+__all__ = ["KnownFailure", "is_known", "load", "mark", "unmapped_obstacle_m"]

@@ -17,13 +17,14 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 
-def _title(problem: Any, outcome: Any, system: str = "full model") -> str:
+def _title(problem: Any, outcome: Any, system: str = "full model", width: int = 130) -> str:
+    """The verdict, and its detail wrapped at ``width`` characters (what the axes hold)."""
     if outcome.failure_kind == "invalid_scenario":
         return f"{problem.name}: not executed ({outcome.detail})"
     if outcome.failure_kind == "invalid_test":
-        return f"{problem.name}: INVALID TEST, not a failure\n{outcome.detail}"
+        return f"{problem.name}: INVALID TEST, not a failure\n" + textwrap.fill(outcome.detail, width, max_lines=3)
     verdict = f"FAILED: {outcome.failure_kind}" if outcome.failed else "passed"
-    return f"{problem.name} {system} {verdict}\n" + textwrap.fill(outcome.detail, 130, max_lines=3)
+    return f"{problem.name} {system} {verdict}\n" + textwrap.fill(outcome.detail, width, max_lines=3)
 
 
 def _mark_failure(ax, outcome: Any) -> None:
@@ -140,7 +141,9 @@ def plot_execution(problem: Any, scenario: Any, outcome: Any, ax=None, plan: Any
         ax.plot(np.asarray(plan)[:, 0], np.asarray(plan)[:, 1], "-", color="tab:orange", lw=1.5, zorder=5,
                 label="its plan")
     _mark_failure(ax, outcome)
-    ax.set_title(_title(problem, outcome, system), fontsize=9)
+    # characters of 9 pt text (about 5.4 pt wide each) the axes span, so that no title runs off the picture
+    width = int(ax.figure.get_figwidth() * ax.get_position().width * 72 / 5.4)
+    ax.set_title(_title(problem, outcome, system, max(width, 40)), fontsize=9)
     if ax.get_legend_handles_labels()[0]:  # a run with nothing drawn (not executed) has no legend
         ax.legend(loc="best", fontsize=7, framealpha=0.8)
     return ax

@@ -169,5 +169,11 @@ def test_the_threat_score_rises_with_what_breaks_stacks(problem):
     feats = threat.hazard_features(meeting)
     assert feats["person_meet_s"] < 0.5 and feats["goal_turn_rad"] == pytest.approx(0.0)
     assert threat.hazard_features(turned)["goal_turn_rad"] == pytest.approx(math.pi)
+    # closing speed of a person who meets the robot: head-on their speed, crossing half, walking ahead none
+    for heading, closing in ((180, 1.5), (90, 0.75), (0, 0.0)):
+        walker = scenario(threat, goal=along, hazards=[("person", {"along": 50, "heading": heading, "extent": 50,
+                                                                   "speed": 1.5, "delay": 15.0})])
+        assert threat.hazard_features(walker)["person_approach_mps"] == pytest.approx(closing, abs=0.05)
+    assert threat.hazard_features(late)["person_approach_mps"] == 0.0  # gone long before the robot comes
     with pytest.raises(ScenarioError, match="threat"):
         get_problem("robot", {"profile": "refined", "objective": "threat"})

@@ -58,8 +58,8 @@ def test_mppis_stop_at_an_unmapped_obstacle_needs_error_105_next_to_a_box_or_pos
 
 def test_the_adapter_measures_the_stop_against_the_scenarios_unmapped_obstacles():
     """The recorded abort (runs.jsonl, key 6d1e25f877cb689d) stopped 0.63 m from the box in its way,
-    the metric the adapter records (``Obstacles.nearest_static_m``); people do not count, no point is
-    no evidence."""
+    the evidence the adapter records (``known_failures.unmapped_obstacle_m``); people do not count,
+    no point or a scenario without hazards is no evidence."""
     import json
 
     from ambiegen_ros.problems import get_problem
@@ -68,13 +68,15 @@ def test_the_adapter_measures_the_stop_against_the_scenarios_unmapped_obstacles(
     runs = SHIPPED.parents[2] / "docs" / "results" / "nav2" / "runs.jsonl"
     (row,) = [r for r in map(json.loads, runs.read_text().splitlines()) if r["key"] == "6d1e25f877cb689d"]
     problem = get_problem("robot", row["problem_config"])
-    unmapped = problem.environment(problem.parse(row["scenario"])).unmapped
-    obstacles = Obstacles.from_dict(unmapped)
-    near = obstacles.nearest_static_m(tuple(row["failure_point"]))
+    scenario = problem.parse(row["scenario"])
+    near = known_failures.unmapped_obstacle_m(problem, scenario, row["failure_point"])
     assert 0.3 < near < 1.0  # within the known failure's reach, yet not inside the box
-    assert obstacles.nearest_static_m(None) is None
-    assert obstacles.nearest_static_m((0.0, 15.9)) > 1.0
-    assert Obstacles.from_dict({"people": unmapped["people"]}).nearest_static_m((0.0, 0.0)) is None
+    assert known_failures.unmapped_obstacle_m(problem, scenario, None) is None
+    assert known_failures.unmapped_obstacle_m(problem, scenario, (0.0, 15.9)) > 1.0
+    walls_only = get_problem("robot", {"profile": "refined"})
+    assert known_failures.unmapped_obstacle_m(walls_only, None, (1.0, 1.0)) is None
+    people = problem.environment(scenario).unmapped["people"]
+    assert Obstacles.from_dict({"people": people}).nearest_static_m((0.0, 0.0)) is None
 
 
 def test_a_bad_file_is_one_clear_error(tmp_path):

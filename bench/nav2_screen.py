@@ -1,0 +1,135 @@
+"""How well does a cheap score predict Nav2's verdicts on hazards scenarios? (issue 49)
+
+Usage: python bench/nav2_screen.py [--runs docs/results/nav2/runs.jsonl] [--mcap BAG ...]
+       [--config config/robot_hazards.yaml] [--tag TAG]
+
+A search screens candidates on something cheap and spends Nav2 hours only on the best, so the
+screen is worth what its ranking of Nav2's verdicts is worth. This takes every hazards scenario
+Nav2 has executed (rows of ``nav2_maps.py``'s runs file whose problem is ``scenario: hazards``, and
+any campaign bag given with ``--mcap``; invalid scenarios and invalid tests left out), computes the
+screen's numbers for it (``RobotProblem.hazard_features``: the threat score the search climbs and
+its parts), and prints the ROC AUC of each against three verdicts: a new certified failure (known
+failures not counted), any certified failure, and a failure or a near miss (a pass that needed
+Nav2's recoveries). AUC 0.5 is a coin, 1.0 ranks every failure above every pass; NaN when a class is
+empty. The AUC within each batch that holds both verdicts is printed too: pooled over batches, it
+also credits whatever made a search pick its batch. Writes bench/results/nav2_screen[_TAG].json.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections import Counter
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import write_result  # noqa: E402
+
+from ambiegen_ros.core.config import load_config_file  # noqa: E402
+from ambiegen_ros.core.stats import roc_auc  # noqa: E402
+from ambiegen_ros.problems import get_problem  # noqa: E402
+from ambiegen_ros.sims.outcome import NAV2_RECOVERIES, near_miss  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+NOT_RUN = ("invalid_scenario", "invalid_test")
+KNOWN = REPO / "config" / "nav2" / "known_failures.yaml"
+# the screen's numbers, signed so that higher means "more likely to fail"
+SCORES = {"threat": 1.0, "static_gap_m": -1.0, "person_meet_s": -1.0, "goal_turn_rad": 1.0, "start_turn_rad": 1.0,
+          "person_approach_mps": 1.0}
+
+
+def from_runs(path: Path) -> list[dict]:
+    """Hazards rows of a runs file: the scenario, its problem config, its verdict."""
+    out = []
+    for line in path.read_text().splitlines():
+        r = json.loads(line)
+        cfg = r.get("problem_config") or {}
+        if cfg.get("scenario") != "hazards" or r.get("failure_kind") in NOT_RUN:
+            continue
+        out.append({"source": r["label"], "problem_config": cfg, "scenario": r["scenario"], "failed": bool(r["failed"]),
+                    "kind": r["failure_kind"], "known": bool(r.get("known_failure")), "row": r,
+                    "recoveries": int(r.get("nav2_recoveries") or 0)})
+    return out
+
+
+def known_today(problem, scenario, row: dict) -> bool:
+    """Whether a failure recorded before today's known failures would match one of them (with the
+    evidence ``sut_adapter`` records now, measured as it does)."""
+    from ambiegen_ros.sims import known_failures
+    from ambiegen_ros.sims.outcome import Outcome
+
+    where = row.get("failure_point") or (row.get("trajectory_every_10") or [None])[-1]
+    metrics = {**row, "unmapped_obstacle_m": known_failures.unmapped_obstacle_m(problem, scenario, where)}
+    outcome = Outcome(objectives={}, failed=True, failure_kind=row["failure_kind"], detail="", metrics=metrics)
+    return known_failures.is_known(known_failures.mark(outcome, known_failures.load(KNOWN)))
+
+
+def scored(rows: list[dict]) -> list[dict]:
+    problems: dict[str, object] = {}
+    for r in rows:
+        key = json.dumps(r["problem_config"], sort_keys=True)
+        p = problems.setdefault(key, get_problem("robot", r["problem_config"]))
+        scenario = p.parse(r["scenario"])
+        r["features"] = p.hazard_features(scenario)
+        if r["failed"] and not r["known"] and "row" in r:
+            r["known"] = known_today(p, scenario, r["row"])
+        r.pop("row", None)
+    return rows
+
+
+def aucs(rows: list[dict]) -> dict:
+    verdicts = {
+        "new_certified_failure": [r["failed"] and not r["known"] for r in rows],
+        "certified_failure": [r["failed"] for r in rows],
+        "failure_or_near_miss": [r["failed"] or near_miss(r["kind"], r["recoveries"]) for r in rows],
+    }
+    out = {}
+    for verdict, label in verdicts.items():
+        out[verdict] = {"positives": int(sum(label))}
+        for name, sign in SCORES.items():
+            score = [sign * float(r["features"].get(name, math.nan)) for r in rows]  # inf: no such hazard
+            score = [-math.inf if math.isnan(s) else s for s in score]
+            out[verdict][name] = round(float(roc_auc(score, label)), 3)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--runs", type=Path, default=REPO / "docs" / "results" / "nav2" / "runs.jsonl")
+    ap.add_argument("--mcap", type=Path, nargs="*", default=[], help="campaign bags of hazards scenarios")
+    ap.add_argument("--config", default="config/robot_hazards.yaml", help="the bags' run config (problem settings)")
+    ap.add_argument("--tag", default="")
+    args = ap.parse_args(argv)
+    rows = from_runs(args.runs) if args.runs.is_file() else []
+    cfg = load_config_file(REPO / args.config).get("problem_config") or {}
+    for bag in args.mcap:
+        rows += from_bag(bag, dict(cfg))
+    if not rows:
+        print("no executed hazards scenario found", file=sys.stderr)
+        return 1
+    rows = scored(rows)
+    figures = {"scenarios": len(rows), "by_source": dict(Counter(r["source"] for r in rows)),
+               "known_failures": sum(r["known"] for r in rows),
+               "kinds": dict(Counter(r["kind"] for r in rows)), "auc": aucs(rows),
+               # within one batch: a batch a search picked differs from a random one in more than the
+               # score, so the pooled AUC also credits the choice of batch
+               "auc_within": {src: aucs([r for r in rows if r["source"] == src])["new_certified_failure"]
+                              for src in sorted({r["source"] for r in rows})
+                              if 0 < sum(r["failed"] and not r["known"] for r in rows if r["source"] == src)
+                              < sum(r["source"] == src for r in rows)},
+               "scores": "higher = riskier: threat, -static_gap_m, -person_meet_s, goal_turn_rad, start_turn_rad, person_approach_mps"}
+    print(f"{len(rows)} executed hazards scenarios: {figures['by_source']}; verdicts {figures['kinds']}")
+    for verdict, row in figures["auc"].items():
+        print(f"ROC AUC against {verdict} ({row['positives']} positives): "
+              + ", ".join(f"{k} {v}" for k, v in row.items() if k != "positives"))
+    for src, row in figures["auc_within"].items():
+        print(f"  within {src} ({row['positives']} positives): "
+              + ", ".join(f"{k} {v}" for k, v in row.items() if k != "positives"))
+    path = write_result("nav2_screen" + (f"_{args.tag}" if args.tag else ""), figures)
+    print(f"written: {path.relative_to(REPO)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
