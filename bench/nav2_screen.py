@@ -65,6 +65,23 @@ def known_today(problem, scenario, row: dict) -> bool:
     return known_failures.is_known(known_failures.mark(outcome, known_failures.load(KNOWN)))
 
 
+def from_bag(path: Path, problem_config: dict) -> list[dict]:
+    """Executed scenarios of one campaign bag, with the run config's problem settings."""
+    from ambiegen_ros.nodes.replay import recorded_scenarios
+
+    rec = recorded_scenarios(path)
+    out = []
+    for sid, o in sorted(rec.outcomes.items()):
+        if o.failure_kind in NOT_RUN or sid not in rec.scenarios:
+            continue
+        sc = rec.scenarios[sid]
+        out.append({"source": path.name, "problem_config": problem_config,
+                    "scenario": {"problem": sc.problem, "elements": sc.elements}, "failed": bool(o.failed),
+                    "kind": o.failure_kind, "known": bool(o.metrics.get("known_failure")),
+                    "recoveries": int(o.metrics.get(NAV2_RECOVERIES) or 0)})
+    return out
+
+
 def scored(rows: list[dict]) -> list[dict]:
     problems: dict[str, object] = {}
     for r in rows:
