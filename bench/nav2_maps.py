@@ -307,25 +307,32 @@ def verdict_agreement(rows: list[dict]) -> list[str]:
     return out
 
 
+def failure_place(row: dict) -> tuple[float, float] | None:
+    """Where a row's run failed; rows from before results carried their failure point: the last
+    pose recorded stands in."""
+    point = row["failure_point"] or (row["trajectory_every_10"] or [None])[-1]
+    return tuple(point[:2]) if point else None
+
+
 def known_facts(row: dict, problem) -> dict:
     """What a known-failure entry reads of a row: the plans counted, the clearance route and map
     side (recorded since issue 27; planned again for older rows), Nav2's error code and, on hazards
     scenarios, how far it failed from an unmapped box or post."""
+    from ambiegen_ros.sims.known_failures import unmapped_obstacle_m
+
+    scenario = problem.parse(row["scenario"])
     route, side = row.get("route_length_m"), row.get("map_side_m")
     if route is None:
         from ambiegen_ros.sims import reference
         from ambiegen_ros.sims.full_model import full_model_executor
 
         full = full_model_executor(problem)
-        env = problem.environment(problem.parse(row["scenario"]))
-        route = reference.before(problem, problem.parse(row["scenario"]), full.config).metrics["route_length_m"]
+        env = problem.environment(scenario)
+        route = reference.before(problem, scenario, full.config).metrics["route_length_m"]
         side = float(max(env.grid.shape) * env.resolution)
-    from ambiegen_ros.sims.known_failures import unmapped_obstacle_m
-
-    where = row.get("failure_point") or (row.get("trajectory_every_10") or [None])[-1]
     return {"plans": row.get("plans"), "route_length_m": route, "map_side_m": side,
             "nav2_error_code": row.get("nav2_error_code"),
-            "unmapped_obstacle_m": unmapped_obstacle_m(problem, problem.parse(row["scenario"]), where)}
+            "unmapped_obstacle_m": unmapped_obstacle_m(problem, scenario, failure_place(row))}
 
 
 def report(args) -> int:
@@ -349,10 +356,8 @@ def report(args) -> int:
         problem = get_problem("robot", {**batch[0].get("problem_config", {}), "profile": batch[0]["profile"]})
         known = 0
         for r in failed:
-            # rows from before results carried their failure point: the last pose recorded stands in
-            point = r["failure_point"] or (r["trajectory_every_10"] or [None])[-1]
             out = Outcome(objectives={}, failed=True, failure_kind=r["failure_kind"], detail=r["detail"],
-                          failure_point=tuple(point) if point else None, metrics=known_facts(r, problem))
+                          failure_point=failure_place(r), metrics=known_facts(r, problem))
             if known_failures.mark(out, entries).metrics.get("known_failure"):
                 known += 1  # recorded, never counted as a new distinct failure
                 continue
@@ -437,9 +442,8 @@ def picture(spec: str) -> int:
         return 2
     r = failed[int(k)]
     problem = get_problem("robot", {**r.get("problem_config", {}), "profile": r["profile"]})
-    point = r["failure_point"] or (r["trajectory_every_10"] or [None])[-1]
     out = Outcome(objectives={}, failed=True, failure_kind=r["failure_kind"], detail=r["detail"],
-                  failure_point=tuple(point) if point else None)
+                  failure_point=failure_place(r))
     print(draw_row(r, problem, out, Path(file)))
     return 0
 

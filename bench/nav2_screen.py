@@ -53,16 +53,16 @@ def from_runs(path: Path) -> list[dict]:
     return out
 
 
-def known_today(problem, scenario, row: dict) -> bool:
-    """Whether a failure recorded before today's known failures would match one of them (with the
-    evidence ``sut_adapter`` records now, measured as it does)."""
+def known_today(problem, row: dict, entries: list) -> bool:
+    """Whether a failure recorded before today's known failures would match one of them, with the
+    evidence ``sut_adapter`` records now (``nav2_maps.known_facts``)."""
     from ambiegen_ros.sims import known_failures
     from ambiegen_ros.sims.outcome import Outcome
+    from nav2_maps import known_facts
 
-    where = row.get("failure_point") or (row.get("trajectory_every_10") or [None])[-1]
-    metrics = {**row, "unmapped_obstacle_m": known_failures.unmapped_obstacle_m(problem, scenario, where)}
-    outcome = Outcome(objectives={}, failed=True, failure_kind=row["failure_kind"], detail="", metrics=metrics)
-    return known_failures.is_known(known_failures.mark(outcome, known_failures.load(KNOWN)))
+    outcome = Outcome(objectives={}, failed=True, failure_kind=row["failure_kind"], detail="",
+                      metrics=known_facts(row, problem))
+    return known_failures.is_known(known_failures.mark(outcome, entries))
 
 
 def from_bag(path: Path, problem_config: dict) -> list[dict]:
@@ -83,6 +83,9 @@ def from_bag(path: Path, problem_config: dict) -> list[dict]:
 
 
 def scored(rows: list[dict], speed: float = 0.5) -> list[dict]:
+    from ambiegen_ros.sims import known_failures
+
+    entries = known_failures.load(KNOWN)
     problems: dict[str, object] = {}
     for r in rows:
         key = json.dumps(r["problem_config"], sort_keys=True)
@@ -90,7 +93,7 @@ def scored(rows: list[dict], speed: float = 0.5) -> list[dict]:
         scenario = p.parse(r["scenario"])
         r["features"] = p.hazard_features(scenario, speed)
         if r["failed"] and not r["known"] and "row" in r:
-            r["known"] = known_today(p, scenario, r["row"])
+            r["known"] = known_today(p, r["row"], entries)
         r.pop("row", None)
     return rows
 
