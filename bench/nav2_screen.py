@@ -26,6 +26,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import write_result  # noqa: E402
 
+import numpy as np  # noqa: E402
+
 from ambiegen_ros.core.config import load_config_file  # noqa: E402
 from ambiegen_ros.core.stats import roc_auc  # noqa: E402
 from ambiegen_ros.problems import get_problem  # noqa: E402
@@ -39,6 +41,15 @@ SCORES = {"threat": 1.0, "static_gap_m": -1.0, "person_meet_s": -1.0, "goal_turn
           "person_approach_mps": 1.0}
 
 
+def pace(facts: dict) -> float | None:
+    """The stack's pace on a pass (m/s: the clearance route's length over the run's time); None on
+    a failure. Recoveries are left in; ``main`` takes the passes without them."""
+    try:
+        return float(facts["route_length_m"]) / float(facts["time"]) if facts["failure_kind"] == "none" else None
+    except (KeyError, TypeError, ValueError, ZeroDivisionError):
+        return None
+
+
 def from_runs(path: Path) -> list[dict]:
     """Hazards rows of a runs file: the scenario, its problem config, its verdict."""
     out = []
@@ -49,7 +60,7 @@ def from_runs(path: Path) -> list[dict]:
             continue
         out.append({"source": r["label"], "problem_config": cfg, "scenario": r["scenario"], "failed": bool(r["failed"]),
                     "kind": r["failure_kind"], "known": bool(r.get("known_failure")), "row": r,
-                    "recoveries": int(r.get("nav2_recoveries") or 0)})
+                    "recoveries": int(r.get("nav2_recoveries") or 0), "pace": pace(r)})
     return out
 
 
@@ -78,7 +89,8 @@ def from_bag(path: Path, problem_config: dict) -> list[dict]:
         out.append({"source": path.name, "problem_config": problem_config,
                     "scenario": {"problem": sc.problem, "elements": sc.elements}, "failed": bool(o.failed),
                     "kind": o.failure_kind, "known": bool(o.metrics.get("known_failure")),
-                    "recoveries": int(o.metrics.get(NAV2_RECOVERIES) or 0)})
+                    "recoveries": int(o.metrics.get(NAV2_RECOVERIES) or 0),
+                    "pace": pace({"failure_kind": o.failure_kind, **o.metrics})})
     return out
 
 
@@ -121,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--config", default="config/robot_hazards.yaml", help="the bags' run config (problem settings)")
     ap.add_argument("--speed", type=float, default=0.5,
                     help="the robot's pace (m/s) at which people meet it (0.5: the threat score's; MPPI's "
-                         "measured median on hazards passes: 0.40)")
+                         "measured median on hazards passes: 0.39, printed)")
     ap.add_argument("--tag", default="")
     args = ap.parse_args(argv)
     rows = from_runs(args.runs) if args.runs.is_file() else []
@@ -132,9 +144,13 @@ def main(argv: list[str] | None = None) -> int:
         print("no executed hazards scenario found", file=sys.stderr)
         return 1
     rows = scored(rows, args.speed)
+    paces = [r["pace"] for r in rows if r["pace"] and not r["recoveries"]]
     figures = {"speed": args.speed, "scenarios": len(rows), "by_source": dict(Counter(r["source"] for r in rows)),
                "known_failures": sum(r["known"] for r in rows),
                "kinds": dict(Counter(r["kind"] for r in rows)), "auc": aucs(rows),
+               # the pace at which people really meet the stack (--speed): passes without recoveries
+               "pace_mps_p10_p50_p90": [round(float(v), 3) for v in np.percentile(paces, [10, 50, 90])] if paces else None,
+               "pace_runs": len(paces),
                # within one batch: a batch a search picked differs from a random one in more than the
                # score, so the pooled AUC also credits the choice of batch
                "auc_within": {src: aucs([r for r in rows if r["source"] == src])["new_certified_failure"]
@@ -143,6 +159,8 @@ def main(argv: list[str] | None = None) -> int:
                               < sum(r["source"] == src for r in rows)},
                "scores": "higher = riskier: threat, -static_gap_m, -person_meet_s, goal_turn_rad, start_turn_rad, person_approach_mps"}
     print(f"{len(rows)} executed hazards scenarios: {figures['by_source']}; verdicts {figures['kinds']}")
+    print(f"pace of passes without recoveries ({len(paces)} runs), 10th/50th/90th percentile: "
+          f"{figures['pace_mps_p10_p50_p90']} m/s")
     for verdict, row in figures["auc"].items():
         print(f"ROC AUC against {verdict} ({row['positives']} positives): "
               + ", ".join(f"{k} {v}" for k, v in row.items() if k != "positives"))
