@@ -177,3 +177,21 @@ def test_the_threat_score_rises_with_what_breaks_stacks(problem):
     assert threat.hazard_features(late)["person_approach_mps"] == 0.0  # gone long before the robot comes
     with pytest.raises(ScenarioError, match="threat"):
         get_problem("robot", {"profile": "refined", "objective": "threat"})
+
+
+def test_the_threat_times_people_at_the_stacks_pace(problem):
+    """threat_speed: a person scores where the robot, at that pace, meets them. The robot reaches the
+    crossing 1.25x later at 0.4 m/s than at 0.5, so a person who starts that much later is the threat."""
+    config = {**problem.config_dict(), "objective": "threat"}
+    at_05, at_04 = get_problem("robot", config), get_problem("robot", {**config, "threat_speed": 0.4})
+
+    def walker(delay):
+        return scenario(at_05, goal=(14, 14, 45), hazards=[("person", {"along": 50, "heading": 90, "extent": 50,
+                                                                        "speed": 1.5, "delay": delay})])
+
+    on_time, later = walker(15.0), walker(18.75)
+    assert at_05.evaluate_scenarios([on_time]).f1[0] > at_04.evaluate_scenarios([on_time]).f1[0]
+    assert at_04.evaluate_scenarios([later]).f1[0] > at_05.evaluate_scenarios([later]).f1[0]
+    assert at_04.hazard_features(later)["person_meet_s"] < 0.5 < at_05.hazard_features(later)["person_meet_s"]
+    with pytest.raises(ScenarioError, match="threat_speed"):
+        get_problem("robot", {**config, "threat_speed": 0.0})
