@@ -16,7 +16,8 @@ distinct new certified failures (the campaign gallery's count: every failure has
 known limits excluded), the early verdicts, counted separately, and the near misses (passes that
 needed Nav2's recoveries, from its action feedback). One JSON row per run is appended
 to ``bench/results/nav2_search.jsonl``, never rewritten. ``--report`` prints, per controller, each
-algorithm's runs and, from 3 runs a side (the issue's minimum), a one-sided Mann-Whitney U test of
+algorithm's runs (their distinct failures per Nav2 hour; runs whose hour of sending held less than
+a Nav2 hour are counted: pass ``--nav2-hours 1.1`` for a full one) and, from 3 runs a side (the issue's minimum), a one-sided Mann-Whitney U test of
 its distinct failures against random's, exact with ties; below 10 runs a side (our rule for a claim
 about a distribution) it is marked as a hint.
 """
@@ -132,9 +133,14 @@ def report(path: Path | None = None) -> int:
             by.setdefault((r["algorithm"], f'{r["mode"]}, {r.get("config", DEFAULT_CONFIG)}'), []).append(r)
         for (algorithm, mode), runs in sorted(by.items()):
             d = [r["distinct_new_failures"] for r in runs]
-            print(f"{algorithm} ({mode}): {len(runs)} runs, Nav2 hours {[r['nav2_hours'] for r in runs]}, "
-                  f"distinct new failures {d}, known {[r['known_failures'] for r in runs]}, near misses "
-                  f"{[r.get('near_misses', '-') for r in runs]} (- : a run from before they were recorded)")
+            hours = [r["nav2_hours"] for r in runs]
+            # the budget is wall seconds of sending: invalid tests and start-ups leave a run short of it
+            short = sum(h < 1.0 for h in hours)
+            print(f"{algorithm} ({mode}): {len(runs)} runs, Nav2 hours {hours}, "
+                  f"distinct new failures {d} (per Nav2 hour {[round(n / h, 1) if h else None for n, h in zip(d, hours)]}), "
+                  f"known {[r['known_failures'] for r in runs]}, near misses "
+                  f"{[r.get('near_misses', '-') for r in runs]} (- : a run from before they were recorded)"
+                  + (f"; {short} under one Nav2 hour (next time: --nav2-hours 1.1)" if short else ""))
         base = [r["distinct_new_failures"] for (a, _), runs in by.items() if a == "random" for r in runs]
         for (algorithm, mode), runs in sorted(by.items()):
             d = [r["distinct_new_failures"] for r in runs]

@@ -308,6 +308,7 @@ def test_nav2_search_report_tests_each_side_against_random_from_three_runs(tmp_p
     # runs on hazards scenarios are compared with random hazards runs only (bench/nav2_search.scenario_space)
     hazards = [{**row("mppi", "random", 0), "config": "config/robot_hazards.yaml"} for _ in range(3)]
     hazards += [{**row("mppi", "nsga2", d), "config": "config/robot_hazards_threat.yaml"} for d in (1, 2, 3)]
+    hazards[-1]["nav2_hours"] = 0.5  # a run whose hour of sending held half a Nav2 hour
     rows += hazards
     monkeypatch.setattr(nav2_search, "OUT", tmp_path / "nav2_search.jsonl")
     nav2_search.OUT.write_text("".join(json.dumps(r) + "\n" for r in rows))
@@ -319,3 +320,5 @@ def test_nav2_search_report_tests_each_side_against_random_from_three_runs(tmp_p
     assert "(a hint: under 10 runs a side)" in dwb
     assert "> random" not in mppi  # 2 runs a side: no test
     assert "config/robot_hazards_threat.yaml) > random, 3 against 3 runs: one-sided Mann-Whitney U = 9" in hazards_part
+    assert "distinct new failures [1, 2, 3] (per Nav2 hour [1.0, 2.0, 6.0])" in hazards_part
+    assert "1 under one Nav2 hour" in hazards_part and "under one Nav2 hour" not in dwb
