@@ -66,7 +66,8 @@ HORIZONTAL, VERTICAL = 0, 1
 DIAGONAL_RULES = ("both_free", "one_free", "always")
 INFLATION_RULES = ("overlap", "centre")  # how the robot radius blocks cells (see ``inflation_footprint``)
 INFLATION_RULE = {"refined": "overlap", "replication": "centre"}
-OBJECTIVES = ("route", "narrow", "threat")  # what F1 measures (``RobotConfig.objective``; threat: hazards only)
+OBJECTIVES = ("route", "narrow", "threat", "block")  # what F1 measures (``RobotConfig.objective``; threat, block: hazards only)
+HAZARD_OBJECTIVES = ("threat", "block")  # F1 from ``robot_hazards.features`` of that name
 SCENARIO_KINDS = ("walls", "hazards")  # ``RobotConfig.scenario``: the paper's map, or issue 48's hazards
 LOOP_OBJECTIVES = ("time", "pace", "time_share")  # what F1 of an execution measures in the loop (``RobotConfig.loop_objective``)
 ENGINES = ("auto", "numba", "numpy")  # batch planner: numba when importable, else scipy
@@ -206,8 +207,8 @@ class RobotConfig:
             raise ScenarioError("config.scenario", f"unknown scenario kind {self.scenario!r}", "|".join(SCENARIO_KINDS))
         if self.scenario == "hazards":
             self._check_hazards()
-        elif self.objective == "threat":
-            raise ScenarioError("config.objective", "threat scores hazards", "scenario: hazards")
+        elif self.objective in HAZARD_OBJECTIVES:
+            raise ScenarioError("config.objective", f"{self.objective} scores hazards", "scenario: hazards")
         # YAML/JSON give lists; keep the dataclass hashable and the cells integral.
         object.__setattr__(self, "start", tuple(int(v) for v in self.start))
         object.__setattr__(self, "goal", tuple(int(v) for v in self.goal))
@@ -681,6 +682,8 @@ class RobotProblem(Problem):
             self.f1_label = "narrow route [m]"
         elif self.config.objective == "threat":
             self.f1_label = "hazards' threat (obstacle on route + person meeting + goal turn, by narrowness)"
+        elif self.config.objective == "block":
+            self.f1_label = "a person shutting the way when the robot comes (closure x time left / 30 s)"
         walls = 48 if self.hazards else self.m_max  # hazards: 48 wall rows, then the start, goal and hazards
         rows = walls + (2 if self.profile == "refined" else 1)  # replication: levels up to the top border
         if self.config.map_size != rows:
@@ -842,16 +845,16 @@ class RobotProblem(Problem):
                     reason = hz.placement_reason(layout, posts, boxes, people, settings, cfg.resolution)
                     counts["boxes"][i], counts["posts"][i], counts["people"][i] = len(boxes), len(posts), len(people)
                     f1[i] = route_m[i] = length * cfg.resolution
-                    if cfg.objective == "threat" and reason is None:
+                    if cfg.objective in HAZARD_OBJECTIVES and reason is None:
                         f1[i] = hz.features(route, layout, posts, boxes, people, grids[i], cfg.resolution,
-                                            cfg.threat_speed)["threat"]
+                                            cfg.threat_speed)[cfg.objective]
             if reason is None:
                 valid[i] = True
             else:
                 reasons[i], f1[i] = reason, 0.0
         metrics = {"path_length": np.where(valid, route_m, 0.0), **counts}
-        if cfg.objective == "threat":
-            metrics["threat"] = f1.copy()
+        if cfg.objective in HAZARD_OBJECTIVES:
+            metrics[cfg.objective] = f1.copy()
         return Evaluation(f1, valid, reasons, metrics)
 
     def _hazard_environment(self, cells: np.ndarray, length: int) -> "RobotMap":

@@ -214,8 +214,49 @@ def free_reach(grid: np.ndarray, resolution: float, origin: np.ndarray, directio
 
 
 # --- what a hazard does to the route (issue 49: the search's features) --------------------------
+PASSING_GAP = 0.72
+"""The room a robot needs to pass beside an obstacle [m]: the true route keeps 0.36 m (the
+footprint's circumscribed radius + margin) from walls and obstacles on both sides."""
+OPEN_GAP = 1.5  # a gap this wide beside a standing person does not narrow the way at all [m]
+BLOCK_S = 30.0  # a block this long after the robot comes scores in full (Nav2's recoveries run out in about this) [s]
+
+
 def wrap(angle: float) -> float:
     return (angle + math.pi) % (2 * math.pi) - math.pi
+
+
+def way_round(grid: np.ndarray, resolution: float, layout: HazardLayout, route: PlacementRoute, arc: float) -> bool:
+    """Whether the mapped walls leave a route from start to goal with the route's cell at ``arc``
+    walled up (coarse: the map's free cells, side by side, as a planner would look when a person
+    shuts the way there)."""
+    from scipy.ndimage import label
+
+    q, _ = route.at(arc / route.length if route.length > 0 else 0.0)
+    cx, cy = int(q[0] // resolution), int(q[1] // resolution)
+    (sx, sy), (gx, gy) = layout.start, layout.goal
+    if (cx, cy) in ((sx, sy), (gx, gy)):
+        return False
+    free = ~np.asarray(grid, dtype=bool)
+    free[cy, cx] = False
+    parts, _ = label(free)
+    return bool(parts[sy, sx] and parts[sy, sx] == parts[gy, gx])
+
+
+def closure(route: PlacementRoute, to_route, grid: np.ndarray, resolution: float, point: np.ndarray,
+            radius: float) -> float:
+    """How far a person standing at ``point`` shuts the way at the nearest route point: 1 when the
+    room left between the walls and their disc is under ``PASSING_GAP`` on both sides (no robot gets
+    by there), falling to 0 at ``OPEN_GAP``; 0 when they stand off the route. Local: a way round
+    elsewhere on the map is not looked for (``sims.reference.robot`` plans the true one)."""
+    dist, arc = to_route(point)
+    if dist > radius + 1.0:
+        return 0.0
+    q, tangent = route.at(arc / route.length if route.length > 0 else 0.0)
+    normal = rotate(tangent, 90.0)
+    side = float((point - q) @ normal)  # the person's offset to the left of the route
+    left = free_reach(grid, resolution, q, normal, 0.01, 3.0) - (side + radius)
+    right = free_reach(grid, resolution, q, -normal, 0.01, 3.0) - (radius - side)
+    return min(max((OPEN_GAP - max(left, right)) / (OPEN_GAP - PASSING_GAP), 0.0), 1.0)
 
 
 def features(route: PlacementRoute, layout: HazardLayout, posts: np.ndarray, boxes: np.ndarray, people: list[dict],
@@ -230,6 +271,10 @@ def features(route: PlacementRoute, layout: HazardLayout, posts: np.ndarray, box
       fastest closing speed, their speed times (1 - cos) / 2 of their heading against the route's
       (head-on = their speed, crossing = half, walking ahead = 0): MPPI's collisions with people
       were head-on or crossing at 1.0-1.3 m/s (docs/results/nav2/mppi_hazards_search.md);
+    * with ``grid``, ``person_block_s``: how long a person still stands where they shut the way
+      (``closure`` 1, before they walk off) once the robot gets there, and ``block``: their
+      ``closure`` times that time over ``BLOCK_S`` (the best of them): a passage a person blocks for
+      a while, where a patient robot waits and Nav2's default tree may give up (#2596, #2877);
     * with ``grid`` (the mapped walls), ``threat``: their sum as a search climbs it, each weighed
       by how narrow the place is (``narrowness``: 1 where the walls leave the robot no room beside
       the route, 0.5 in the open): an obstacle on the route, a person meeting the robot there, a goal
@@ -287,6 +332,19 @@ def features(route: PlacementRoute, layout: HazardLayout, posts: np.ndarray, box
         if math.isfinite(best):
             person_threat = max(person_threat,
                                 min(max(1.0 - best / 5.0, 0.0), 1.0) * narrow(at) * person["speed"] / 1.5)
+    block_s, block = 0.0, 0.0
+    if grid is not None:
+        for person in people:
+            a, b = np.asarray(person["path"], dtype=float)
+            if closure(route, to_route, grid, resolution, b, person["radius"]) >= 1.0:
+                continue  # where it ends it stands for good: no robot gets by (an invalid test)
+            shut = closure(route, to_route, grid, resolution, a, person["radius"])
+            if shut >= 1.0 and way_round(grid, resolution, layout, route, to_route(a)[1]):
+                shut = 0.5  # the way shut here, but the map has another one
+            left = person["delay"] - to_route(a)[1] / speed  # how long it still stands there when the robot comes
+            if shut >= 1.0:
+                block_s = max(block_s, left)
+            block = max(block, shut * min(max(left / BLOCK_S, 0.0), 1.0))
     first, last = pts[1] - pts[0], pts[-1] - pts[-2]
     goal_turn = abs(wrap(layout.goal_yaw - math.atan2(last[1], last[0])))
     out = {
@@ -295,6 +353,8 @@ def features(route: PlacementRoute, layout: HazardLayout, posts: np.ndarray, box
         "start_turn_rad": abs(wrap(layout.start_yaw - math.atan2(first[1], first[0]))),
         "goal_turn_rad": goal_turn,
         "person_approach_mps": approach,
+        "person_block_s": block_s,
+        "block": block,
     }
     if grid is not None:
         out["threat"] = static_threat + person_threat + goal_turn / math.pi * narrow(route.length)

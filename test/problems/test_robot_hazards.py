@@ -195,3 +195,56 @@ def test_the_threat_times_people_at_the_stacks_pace(problem):
     assert at_04.hazard_features(later)["person_meet_s"] < 0.5 < at_05.hazard_features(later)["person_meet_s"]
     with pytest.raises(ScenarioError, match="threat_speed"):
         get_problem("robot", {**config, "threat_speed": 0.0})
+
+
+def doorway_map(doors=(10,)) -> np.ndarray:
+    """20 x 20 cells of 1 m: a border and a wall across y = 10 with 1 m doors at these x."""
+    grid = np.zeros((20, 20), dtype=bool)
+    grid[0, :] = grid[-1, :] = grid[:, 0] = grid[:, -1] = True
+    grid[10, :] = True
+    for x in doors:
+        grid[10, x] = False
+    return grid
+
+
+def test_a_person_standing_in_the_only_door_blocks_the_way_for_a_while():
+    """block / person_block_s (issue 49): a person who stands in a doorway when the robot gets there
+    and walks off later shuts the way for that long; in the open, off the route, with another door,
+    gone before the robot comes, or standing in the door for good (an invalid test), they do not."""
+    route = hz.PlacementRoute(np.array([[10.5, 2.5], [10.5, 17.5]]))  # through the door at (10, 10)
+    layout = hz.HazardLayout((10, 2), (10, 17), math.pi / 2, math.pi / 2, [])
+    empty = np.zeros((0, 3)), np.zeros((0, 4))
+
+    def person(a, b, delay, radius=0.25):
+        return {"path": [list(a), list(b)], "speed": 1.0, "delay": delay, "radius": radius}
+
+    def block(people, grid=None, speed=0.5):
+        f = hz.features(route, layout, *empty, people, doorway_map() if grid is None else grid, 1.0, speed)
+        return f["block"], f["person_block_s"]
+
+    in_door_then_off = person((10.5, 10.5), (12.5, 12.5), delay=60.0)  # the robot is at the door after 8 m
+    assert block([in_door_then_off]) == (pytest.approx(1.0), pytest.approx(60.0 - 8.0 / 0.5))
+    assert block([in_door_then_off], speed=0.4)[1] == pytest.approx(60.0 - 8.0 / 0.4)  # timed at the pace
+    half = block([person((10.5, 10.5), (12.5, 12.5), delay=31.0)])  # still there 15 s after the robot comes
+    assert half == (pytest.approx(0.5), pytest.approx(15.0))
+    assert block([person((10.5, 10.5), (12.5, 12.5), delay=10.0)]) == (0.0, 0.0)  # gone before it comes
+    assert block([person((10.5, 5.5), (12.5, 7.5), delay=60.0)]) == (0.0, 0.0)  # on the route in the open
+    assert block([person((14.5, 10.9), (16.5, 12.5), delay=60.0)]) == (0.0, 0.0)  # off the route
+    assert block([person((12.5, 12.5), (10.5, 10.5), delay=60.0)]) == (0.0, 0.0)  # ends in the door: for good
+    two_doors = block([in_door_then_off], grid=doorway_map((3, 10)))  # a planner goes round by the other door
+    assert two_doors[1] == 0.0 and 0.0 < two_doors[0] < 1.0
+    assert hz.way_round(doorway_map((3, 10)), 1.0, layout, route, 8.0)
+    assert not hz.way_round(doorway_map(), 1.0, layout, route, 8.0)
+
+
+def test_the_block_search_finds_people_in_doorways(problem):
+    """objective: block: F1 is the block feature, and a short search finds a person shutting the way."""
+    config = {**problem.config_dict(), "objective": "block"}
+    blocker = get_problem("robot", config)
+    settings = SearchSettings(algorithm="nsga2", evaluations=1500, population=30, offspring=30, seed=2)
+    result = Search(blocker, settings).run()
+    best = blocker.parse(result.suite[0]["scenario"])
+    assert result.best_f1 > 0.0
+    assert blocker.evaluate_scenarios([best]).f1[0] == pytest.approx(blocker.hazard_features(best)["block"])
+    with pytest.raises(ScenarioError, match="block"):
+        get_problem("robot", {"profile": "refined", "objective": "block"})
