@@ -214,10 +214,13 @@ def free_reach(grid: np.ndarray, resolution: float, origin: np.ndarray, directio
 
 
 # --- what a hazard does to the route (issue 49: the search's features) --------------------------
-PASSING_GAP = 0.72
-"""The room a robot needs to pass beside an obstacle [m]: the true route keeps 0.36 m (the
-footprint's circumscribed radius + margin) from walls and obstacles on both sides."""
-OPEN_GAP = 1.5  # a gap this wide beside a standing person does not narrow the way at all [m]
+PASSING_GAP = 0.40
+"""The room a stack needs to squeeze past a standing person [m]: the pioneer's body is 0.38 m wide.
+Measured on Jazzy's MPPI (16 block probes, docs/results/nav2/mppi_gives_up_blocked.md): it failed
+or needed 12 and more recoveries where the room beside the person was 0.34 m or less, and got by
+where it was 0.42 m or more. (The patient reference, which keeps 0.36 m from both sides, needs
+0.72 m: it waits wherever MPPI is stopped.)"""
+OPEN_GAP = 1.0  # a gap this wide beside a standing person does not narrow the way at all [m]
 BLOCK_S = 30.0  # a block this long after the robot comes scores in full (Nav2's recoveries run out in about this) [s]
 
 

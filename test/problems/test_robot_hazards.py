@@ -231,6 +231,9 @@ def test_a_person_standing_in_the_only_door_blocks_the_way_for_a_while():
     assert block([person((10.5, 5.5), (12.5, 7.5), delay=60.0)]) == (0.0, 0.0)  # on the route in the open
     assert block([person((14.5, 10.9), (16.5, 12.5), delay=60.0)]) == (0.0, 0.0)  # off the route
     assert block([person((12.5, 12.5), (10.5, 10.5), delay=60.0)]) == (0.0, 0.0)  # ends in the door: for good
+    wide = block([person((11.0, 10.5), (13.0, 12.5), delay=60.0)], grid=doorway_map((10, 11)))  # 0.75 m each side
+    partial = (hz.OPEN_GAP - 0.75) / (hz.OPEN_GAP - hz.PASSING_GAP)  # the walls are found in 5 cm steps
+    assert wide[1] == 0.0 and wide[0] == pytest.approx(partial, abs=0.05 / (hz.OPEN_GAP - hz.PASSING_GAP) + 1e-9)
     two_doors = block([in_door_then_off], grid=doorway_map((3, 10)))  # a planner goes round by the other door
     assert two_doors[1] == 0.0 and 0.0 < two_doors[0] < 1.0
     assert hz.way_round(doorway_map((3, 10)), 1.0, layout, route, 8.0)
