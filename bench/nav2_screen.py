@@ -38,7 +38,7 @@ NOT_RUN = ("invalid_scenario", "invalid_test")
 KNOWN = REPO / "config" / "nav2" / "known_failures.yaml"
 # the screen's numbers, signed so that higher means "more likely to fail"
 SCORES = {"threat": 1.0, "static_gap_m": -1.0, "person_meet_s": -1.0, "goal_turn_rad": 1.0, "start_turn_rad": 1.0,
-          "person_approach_mps": 1.0}
+          "person_approach_mps": 1.0, "block": 1.0, "person_block_s": 1.0}
 
 
 def pace(facts: dict) -> float | None:
