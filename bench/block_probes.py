@@ -28,20 +28,16 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 
-def shuts_the_world(problem, env, config) -> bool:
+def shuts_the_world(env, config) -> bool:
     """Whether some person, standing where their path starts, leaves the true world no route."""
     from ambiegen_ros.sims.obstacles import Obstacles
     from ambiegen_ros.sims.reference import robot as ref
 
-    centre = lambda c: ((c[0] + 0.5) * env.resolution, (c[1] + 0.5) * env.resolution)  # noqa: E731
     for person in env.unmapped["people"]:
         (x, y), radius = person["path"][0], person["radius"]
         standing = Obstacles.from_dict({**env.unmapped, "posts": list(env.unmapped["posts"]) + [[x, y, radius]],
                                         "people": []})
-        route = ref.plan_clearance_route(env.grid, env.resolution, centre(env.start), centre(env.goal),
-                                         ref.required_clearance(config), config.route_resolution,
-                                         standing.static_distance)
-        if not route.found:
+        if not ref.route_for(env.grid, env.resolution, env.start, env.goal, config, standing.static_distance).found:
             return True
     return False
 
@@ -70,7 +66,7 @@ def probes(seeds: list[int], evaluations: int) -> list[dict]:
                 continue
             env = problem.environment(scenario)
             after = ref.after(problem, scenario, config, passed)
-            if shuts_the_world(problem, env, config) and ref.before(problem, scenario, config).passed \
+            if shuts_the_world(env, config) and ref.before(problem, scenario, config).passed \
                     and after is not None and after.passed:
                 seen.add(key)
                 out.append({"f1": round(float(f["person_block_s"]), 3), "seed": seed,

@@ -33,8 +33,8 @@ def test_a_person_in_the_only_gap_shuts_the_world_and_a_walker_does_not():
     config = full_model_executor(problem).config
     blocked = problem.parse(first_scenario(NAV2 / "mppi_gives_up_blocked_suite.json"))  # Nav2 gave up here (208)
     walker = problem.parse(first_scenario(NAV2 / "mppi_person_collision_scenario.json"))  # a person walking a corridor
-    assert bp.shuts_the_world(problem, problem.environment(blocked), config)
-    assert not bp.shuts_the_world(problem, problem.environment(walker), config)
+    assert bp.shuts_the_world(problem.environment(blocked), config)
+    assert not bp.shuts_the_world(problem.environment(walker), config)
     assert bp.seed_list("3-5") == [3, 4, 5] and bp.seed_list("7") == [7]
 
 

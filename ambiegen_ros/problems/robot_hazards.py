@@ -245,13 +245,14 @@ def way_round(grid: np.ndarray, resolution: float, layout: HazardLayout, route: 
     return bool(parts[sy, sx] and parts[sy, sx] == parts[gy, gx])
 
 
-def closure(route: PlacementRoute, to_route, grid: np.ndarray, resolution: float, point: np.ndarray,
-            radius: float) -> float:
-    """How far a person standing at ``point`` shuts the way at the nearest route point: 1 when the
-    room left between the walls and their disc is under ``PASSING_GAP`` on both sides (no robot gets
-    by there), falling to 0 at ``OPEN_GAP``; 0 when they stand off the route. Local: a way round
-    elsewhere on the map is not looked for (``sims.reference.robot`` plans the true one)."""
-    dist, arc = to_route(point)
+def closure(route: PlacementRoute, near: tuple[float, float], grid: np.ndarray, resolution: float,
+            point: np.ndarray, radius: float) -> float:
+    """How far a person standing at ``point`` (``near``: its distance to the route and the route's arc
+    length there) shuts the way at that route point: 1 when the room left between the walls and their
+    disc is under ``PASSING_GAP`` on both sides (no robot gets by there), falling to 0 at
+    ``OPEN_GAP``; 0 when they stand off the route. Local: a way round elsewhere on the map is not
+    looked for (``sims.reference.robot`` plans the true one)."""
+    dist, arc = near
     if dist > radius + 1.0:
         return 0.0
     q, tangent = route.at(arc / route.length if route.length > 0 else 0.0)
@@ -339,12 +340,13 @@ def features(route: PlacementRoute, layout: HazardLayout, posts: np.ndarray, box
     if grid is not None:
         for person in people:
             a, b = np.asarray(person["path"], dtype=float)
-            if closure(route, to_route, grid, resolution, b, person["radius"]) >= 1.0:
+            if closure(route, to_route(b), grid, resolution, b, person["radius"]) >= 1.0:
                 continue  # where it ends it stands for good: no robot gets by (an invalid test)
-            shut = closure(route, to_route, grid, resolution, a, person["radius"])
-            if shut >= 1.0 and way_round(grid, resolution, layout, route, to_route(a)[1]):
+            near = to_route(a)
+            shut = closure(route, near, grid, resolution, a, person["radius"])
+            if shut >= 1.0 and way_round(grid, resolution, layout, route, near[1]):
                 shut = 0.5  # the way shut here, but the map has another one
-            left = person["delay"] - to_route(a)[1] / speed  # how long it still stands there when the robot comes
+            left = person["delay"] - near[1] / speed  # how long it still stands there when the robot comes
             if shut >= 1.0:
                 block_s = max(block_s, left)
             block = max(block, shut * min(max(left / BLOCK_S, 0.0), 1.0))

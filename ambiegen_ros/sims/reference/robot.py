@@ -230,11 +230,12 @@ def plan_clearance_route(grid: np.ndarray, resolution: float, start_xy: tuple[fl
 
 
 def route_for(grid: np.ndarray, resolution: float, start: tuple[int, int], goal: tuple[int, int],
-              config: Any) -> ClearanceRoute:
-    """The clearance route between two cells' centres with the config's margin and resolution."""
+              config: Any, extra: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> ClearanceRoute:
+    """The clearance route between two cells' centres with the config's margin and resolution (and
+    clear of what ``extra`` measures, as ``plan_clearance_route``)."""
     centre = lambda c: ((c[0] + 0.5) * resolution, (c[1] + 0.5) * resolution)  # noqa: E731
     return plan_clearance_route(grid, resolution, centre(start), centre(goal), required_clearance(config),
-                                config.route_resolution)
+                                config.route_resolution, extra)
 
 
 def before(problem: Any, scenario: Any, config: Any) -> ReferenceVerdict:
@@ -278,11 +279,10 @@ def true_route(problem: Any, scenario: Any, env: Any, config: Any) -> ClearanceR
     if key not in _TRUE_ROUTES:
         obstacles = Obstacles.from_dict(env.unmapped) if env.unmapped else Obstacles()
         static = len(obstacles.posts) or len(obstacles.boxes)
-        centre = lambda c: ((c[0] + 0.5) * env.resolution, (c[1] + 0.5) * env.resolution)  # noqa: E731
         if len(_TRUE_ROUTES) >= 8:
             _TRUE_ROUTES.pop(next(iter(_TRUE_ROUTES)))
-        _TRUE_ROUTES[key] = plan_clearance_route(env.grid, env.resolution, centre(env.start), centre(env.goal),
-                                                 key[1], key[2], obstacles.static_distance if static else None)
+        _TRUE_ROUTES[key] = route_for(env.grid, env.resolution, env.start, env.goal, config,
+                                      obstacles.static_distance if static else None)
     return _TRUE_ROUTES[key]
 
 
