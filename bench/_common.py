@@ -37,3 +37,11 @@ def append_row(path: Path, row: dict) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "a") as fh:
         fh.write(json.dumps(row) + "\n")
+
+
+def seed_list(text: str) -> list[int]:
+    """Seeds from the command line: ``100-119`` or ``100,101,105`` (or one seed)."""
+    if "-" in text and "," not in text:
+        low, high = (int(v) for v in text.split("-"))
+        return list(range(low, high + 1))
+    return [int(v) for v in text.split(",")]

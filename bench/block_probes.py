@@ -26,6 +26,8 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "bench"))
+from _common import seed_list  # noqa: E402
 
 
 def shuts_the_world(env, config) -> bool:
@@ -65,20 +67,16 @@ def probes(seeds: list[int], evaluations: int) -> list[dict]:
             if f.get("person_block_s", 0.0) <= 0.0 or key in seen:
                 continue
             env = problem.environment(scenario)
-            after = ref.after(problem, scenario, config, passed)
-            if shuts_the_world(env, config) and ref.before(problem, scenario, config).passed \
-                    and after is not None and after.passed:
+            if not (shuts_the_world(env, config) and ref.before(problem, scenario, config).passed):
+                continue
+            after = ref.after(problem, scenario, config, passed)  # the patient reference, the costly check, last
+            if after is not None and after.passed:
                 seen.add(key)
                 out.append({"f1": round(float(f["person_block_s"]), 3), "seed": seed,
                             "note": f"patient reference waits {after.metrics['patient_waited_s']:.0f} s",
                             "scenario": json.loads(scenario.to_json())})
                 print(f"seed {seed}: a probe, blocked {f['person_block_s']:.1f} s after the robot comes", flush=True)
     return out
-
-
-def seed_list(text: str) -> list[int]:
-    lo, _, hi = text.partition("-")
-    return list(range(int(lo), int(hi or lo) + 1))
 
 
 def main(argv: list[str] | None = None) -> int:

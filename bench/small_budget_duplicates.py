@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import write_result  # noqa: E402
+from _common import seed_list, write_result  # noqa: E402
 
 from ambiegen_ros.core.search import Search, SearchSettings  # noqa: E402
 from ambiegen_ros.core.stats import cliffs_delta  # noqa: E402
@@ -53,14 +53,6 @@ class GenomeDuplicates(VehicleProblem):
 
     def search_operators(self, settings) -> dict:
         return {}
-
-
-def seed_list(text: str) -> list[int]:
-    """``100-119`` or ``100,101,105``."""
-    if "-" in text and "," not in text:
-        low, high = (int(v) for v in text.split("-"))
-        return list(range(low, high + 1))
-    return [int(v) for v in text.split(",")]
 
 
 def one_run(problem, algorithm: str, seed: int, population: int, offspring: int | None,
