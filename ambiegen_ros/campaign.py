@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .launch_logic import SIM_EXECUTABLES, log_summary, new_run_id
+from .launch_logic import SIM_EXECUTABLES, NodeSpec, log_summary, nd_stack, new_run_id
 
 DISCOVERY_RANGE_VAR = "ROS_AUTOMATIC_DISCOVERY_RANGE"
 CAMPAIGN_RANGES = ("LOCALHOST", "SUBNET", "SYSTEM_DEFAULT")  # OFF would keep the campaign's own nodes apart
@@ -103,8 +103,52 @@ def ros_params(**params: Any) -> list[str]:
     return args
 
 
+def ros_value(value: Any) -> str:
+    """A parameter value as ``-p name:=VALUE`` takes it (YAML): booleans in lower case, lists as
+    flow sequences, the empty string quoted (bare, YAML would read it as null)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(json.dumps(v) for v in value) + "]"
+    return "''" if value == "" else str(value)
+
+
+def node_argv(node: NodeSpec, python: str | None = None) -> list[str]:
+    """The command line of one planned node (``launch_logic.NodeSpec``): a script of ours runs as
+    ``python -m <its module>`` (the interpreter of this process: under a sourced ROS the nodes get
+    rclpy, without it the DDS backend), any other package's through ``ros2 run``. Parameters that
+    are None are left out."""
+    ros = ["--ros-args", "-r", f"__node:={node.name}"]
+    if node.namespace:
+        ros += ["-r", f"__ns:=/{node.namespace}"]
+    for source, target in node.remappings:
+        ros += ["-r", f"{source}:={target}"]
+    for path in node.params_files:
+        ros += ["--params-file", str(path)]
+    for name, value in node.parameters.items():
+        if value is not None:
+            ros += ["-p", f"{name}:={ros_value(value)}"]
+    if node.package == "ambiegen_ros":
+        return [python or sys.executable, "-m", node_module(node.executable), *ros]
+    return ["ros2", "run", node.package, node.executable, *ros]
+
+
+def node_module(executable: str) -> str:
+    """The module an executable of ours runs (``entry.SCRIPTS`` maps them the same way): a sim-side
+    node in ``sim_nodes``, a search-side one in ``ambiegen_ros.nodes``."""
+    from importlib.util import find_spec
+
+    for package in ("sim_nodes", "ambiegen_ros.nodes"):
+        if find_spec(f"{package}.{executable}") is not None:
+            return f"{package}.{executable}"
+    raise ValueError(f"no node module for the executable {executable!r}")
+
+
 class ProcessGroup:
-    """Node subprocesses with their logs in one folder; stopped with SIGINT, SIGKILL as a last resort."""
+    """Node subprocesses with their logs in one folder; stopped with SIGINT, SIGKILL as a last resort.
+
+    Each process leads a process group of its own, so that a stop reaches what it started too
+    (``ros2 launch`` and its servers, ``ros2 run`` and its node)."""
 
     def __init__(self, log_dir: Path, env: dict[str, str]):
         self.log_dir = Path(log_dir)
@@ -112,12 +156,14 @@ class ProcessGroup:
         self.procs: dict[str, subprocess.Popen] = {}
 
     def start(self, name: str, module: str, args: list[str]) -> subprocess.Popen:
+        return self.start_argv(name, [sys.executable, "-m", module, *args])
+
+    def start_argv(self, name: str, argv: list[str]) -> subprocess.Popen:
+        """Any command (a node of ours, ``ros2 launch ...``), its output in ``<log_dir>/<name>.log``."""
         self.log_dir.mkdir(parents=True, exist_ok=True)
-        log = open(self.log_dir / f"{name}.log", "wb")
-        self.procs[name] = subprocess.Popen(
-            [sys.executable, "-m", module, *args], env=self.env, stdout=log, stderr=subprocess.STDOUT
-        )
-        log.close()
+        with open(self.log_dir / f"{name}.log", "ab") as log:
+            self.procs[name] = subprocess.Popen(argv, env=self.env, stdout=log, stderr=subprocess.STDOUT,
+                                                start_new_session=True)
         return self.procs[name]
 
     def stop(self, order: list[str] | None = None, timeout: float = 15.0) -> None:
@@ -125,12 +171,22 @@ class ProcessGroup:
             proc = self.procs.get(name)
             if proc is None or proc.poll() is not None:
                 continue
-            proc.send_signal(signal.SIGINT)
+            _signal_group(proc, signal.SIGINT)
             try:
                 proc.wait(timeout=timeout)
             except subprocess.TimeoutExpired:
-                proc.kill()
+                _signal_group(proc, signal.SIGKILL)
                 proc.wait()
+            else:  # the leader is gone: what it started and left behind goes too
+                _signal_group(proc, signal.SIGKILL)
+
+
+def _signal_group(proc: subprocess.Popen, sig: int) -> None:
+    """``sig`` to the process group ``proc`` leads (its own: ``start_new_session``), if any is left."""
+    try:
+        os.killpg(proc.pid, sig)
+    except (ProcessLookupError, PermissionError):
+        pass
 
 
 class Campaign:
@@ -228,14 +284,8 @@ class Campaign:
 
     def _start_stack(self) -> None:
         """robot_world + nd_driver + sut_adapter: the full model's loop, step for step, over ROS topics."""
-        spec = self.spec
-        self._start("robot_world", "sim_nodes.robot_world", ros_params(
-            lockstep=True, time_scale=0.0, scan_rate=10.0, seed=spec.seed, cmd_vel_stamped=True, paired_start=True,
-            **{"sim.dt": 0.1}))
-        self._start("nd_driver", "sim_nodes.nd_driver", ros_params(cmd_vel_stamped=True, paired_start=True))
-        self._start("sut_adapter", "sim_nodes.sut_adapter", ros_params(
-            problem="robot", worker_id=f"sut_{self.run_id[-6:]}", profile=spec.profile, config_file=spec.config,
-            stall_topic="/nd_driver/stall", plan_topic="/plan", min_result_subscribers=2, settle_time=0.1))
+        for node in nd_stack(self.spec.seed, self.run_id[-6:], self.spec.profile, self.spec.config):
+            self.group.start_argv(node.name, node_argv(node))
 
     def _stop_all(self) -> None:
         """Generator first (it may still be writing timeouts), then workers, recorder last."""

@@ -160,6 +160,8 @@ NAV2_LAUNCH_ARGUMENTS: dict[str, tuple[str, str]] = {
     "result_timeout": ("0.0", "seconds the generator waits for a scenario (0 = twice the adapter's longest run)"),
     "known_failures": ("", "YAML of known Nav2 failures, recorded as FAIL(kind, known: name) and not counted as new "
                            "('' = the package's config/nav2/known_failures.yaml; 'none' = none)"),
+    "contact_fault_speed": ("", "m/s: a contact with a person is the robot's fault only when it moves towards them "
+                                "faster than this ('' = the world's default, 0.01)"),
     "stacks": ("1", "K stacks of world + Nav2 + adapter fed by one generator, stack i in namespace /stack<i> "
                     "(K > 1: nav2:=ours)"),
     "part": ("all", "what this host runs, for a campaign across hosts: all | generator (the recorder and the "
@@ -210,16 +212,17 @@ def nav2_overlay(value: str, params_file: str, share_dir: str) -> str | None:
     return file_argument(value, os.path.join(share_dir, *OVERLAY_FILE) if params_file else None)
 
 
-def nav2_stack(ns: str, mode: str, params: dict, scaled: Path, base: CampaignPlan, k: float, upsample: int,
+def nav2_stack(ns: str, mode: str, params: dict, scaled: Path, seed: int, tag: str, k: float, upsample: int,
                start_timeout: float, early: bool, speed: float | None, config_file: str, profile: str) -> list[NodeSpec]:
     """One stack: ``robot_world``, Nav2 (with ``nav2:=ours``) and ``sut_adapter``. In the root
     namespace (``ns`` = '') as one stack runs; else every node of it in ``/<ns>``, on its own
     world's clock (``/<ns>/clock``) and TF (``/<ns>/tf``), with the params nested under ``ns``
-    (``nav2_params.for_namespace``) in a file of its own beside the log."""
+    (``nav2_params.for_namespace``) in a file of its own beside the log. ``seed``: the world's (laser
+    noise); ``tag``: makes the adapter's worker id unique (the run id's last characters)."""
     at = (lambda topic: f"/{ns}{topic}") if ns else (lambda topic: topic)  # noqa: E731
     suffix = f"_{ns}" if ns else ""
     world = NodeSpec("robot_world", "robot_world", {
-        "time_scale": k, "seed": base.seed, "paired_start": True,
+        "time_scale": k, "seed": seed, "paired_start": True,
         **{f"{name}_topic": at(f"/{name}") for name in ("map", "initialpose", "cmd_vel", "odom", "scan", "collision",
                                                          "clock")},
         "obstacles_topic": at(topics.WORLD_OBSTACLES), "markers_topic": at(topics.WORLD_MARKERS)}, namespace=ns)
@@ -234,7 +237,7 @@ def nav2_stack(ns: str, mode: str, params: dict, scaled: Path, base: CampaignPla
                          namespace=ns, remappings=remap) for name, package, executable in NAV2_NODES]
     lifecycle = ",".join(f"{ns}/{n}" if ns else n for n in ("planner_server", "controller_server", "bt_navigator"))
     adapter = NodeSpec(f"sut_adapter{suffix}", "sut_adapter", {
-        "problem": "robot", "worker_id": f"nav2{suffix}_{base.run_id[-6:]}", "goal_mode": "action", "time_scale": k,
+        "problem": "robot", "worker_id": f"nav2{suffix}_{tag}", "goal_mode": "action", "time_scale": k,
         "map_topic": at("/map"), "initialpose_topic": at("/initialpose"), "odom_topic": at("/odom"),
         "collision_topic": at("/collision"), "plan_topic": at("/plan"), "action_name": at("/navigate_to_pose"),
         "obstacles_topic": at(topics.WORLD_OBSTACLES),
@@ -246,6 +249,22 @@ def nav2_stack(ns: str, mode: str, params: dict, scaled: Path, base: CampaignPla
         "early_verdicts": early, "time_limit_speed": speed or 0.0,
         "config_file": config_file, "profile": profile, "min_result_subscribers": 2})
     return [world, *nav2, adapter]
+
+
+def nd_stack(seed: int, tag: str, profile: str | None, config_file: str | None) -> list[NodeSpec]:
+    """Our ROS-free navigation stack: ``robot_world`` in lockstep with ``nd_driver`` (the full
+    model's route and Nearness Diagram on Nav2's topics) behind ``sut_adapter``, so every verdict is
+    the in-process full model's for the world's ``seed`` (the world's collision report included: a
+    robot stopped by a person it drove into is a collision, not a stall)."""
+    return [
+        NodeSpec("robot_world", "robot_world", {"lockstep": True, "time_scale": 0.0, "scan_rate": 10.0, "seed": seed,
+                                                "cmd_vel_stamped": True, "paired_start": True, "sim.dt": 0.1}),
+        NodeSpec("nd_driver", "nd_driver", {"cmd_vel_stamped": True, "paired_start": True}),
+        NodeSpec("sut_adapter", "sut_adapter", {
+            "problem": "robot", "worker_id": f"sut_{tag}", "profile": profile, "config_file": config_file,
+            "stall_topic": "/nd_driver/stall", "plan_topic": "/plan", "collision_topic": "/collision",
+            "min_result_subscribers": 2, "settle_time": 0.1}),
+    ]
 
 
 def campaign_part(value: str) -> str:
@@ -306,9 +325,13 @@ def plan_nav2_campaign(values: dict[str, str], share_dir: str, seed: int | None 
     here = {"all": groups, "generator": []}.get(part, [part])
     nodes = [] if part.startswith("stack") else [recorder]
     for ns in here:
-        nodes += nav2_stack(ns, mode, params, scaled, base, k, upsample, start_timeout, early, speed,
+        nodes += nav2_stack(ns, mode, params, scaled, base.seed, base.run_id[-6:], k, upsample, start_timeout, early, speed,
                             generator.parameters["config_file"], value["profile"])
         nodes[-1].parameters["known_failures"] = known
+        if value["contact_fault_speed"]:
+            charge = _number("contact_fault_speed", value["contact_fault_speed"], float, 0.0)
+            nodes[0].parameters["sim.contact_fault_speed"] = charge  # the world decides who ran into whom
+            nodes[-1].parameters["oracle.contact_fault_speed"] = charge  # ... and the reference, alike
     base.nodes = nodes + ([] if part.startswith("stack") else [generator])
     base.workers = stacks if part == "all" else len(here)
     if part.startswith("stack"):

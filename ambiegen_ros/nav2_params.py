@@ -95,9 +95,9 @@ def for_namespace(params: dict, namespace: str) -> dict:
     return {namespace.strip("/"): walk(params)}
 
 
-def package_file(*parts: str) -> Path | None:
-    """A file the package ships under ``share/ambiegen_ros`` (a colcon or pip install) or in its
-    source checkout; None where neither has it."""
+def package_file(*parts: str, folder: bool = False) -> Path | None:
+    """A file (``folder``: a folder) the package ships under ``share/ambiegen_ros`` (a colcon or pip
+    install) or in its source checkout; None where neither has it."""
     import os
     import sys
 
@@ -105,8 +105,9 @@ def package_file(*parts: str) -> Path | None:
     roots += [Path(prefix) / "share" / "ambiegen_ros"
               for prefix in [sys.prefix, *os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep)] if prefix]
     for root in roots:
-        if (root / Path(*parts)).is_file():
-            return root / Path(*parts)
+        path = root / Path(*parts)
+        if path.is_dir() if folder else path.is_file():
+            return path
     return None
 
 

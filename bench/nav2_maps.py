@@ -1,59 +1,39 @@
-"""What Nav2 fails on: robot maps executed on a real Nav2 (a private Jazzy + Nav2 build), each verdict appended.
+"""The Nav2 runs of before the fix loop (``docs/results/nav2/runs.jsonl``): their report and pictures,
+and suites of maps for ``ambiegen rerun``, which now runs maps on Nav2 (issue 56).
 
-    python bench/nav2_maps.py --setup ~/jazzy-verify/install/setup.bash --maps random --count 20 \\
-        --profile refined --seed 3 --label random-refined
-    python bench/nav2_maps.py --setup ... --maps suite:runs/top/suite.json --count 20 --label top-refined
-    python bench/nav2_maps.py --report          # the table and three failure pictures, from the results
+    python bench/nav2_maps.py --report          # the table and three failure pictures, from the rows
     python bench/nav2_maps.py --picture narrow-s1-dwb-k1-confirm:0:docs/results/nav2/dwb_narrow_slot.png
+    python bench/nav2_maps.py --maps random --count 20 --profile refined --seed 3 --write-suite maps.json
+    ambiegen rerun maps.json --stack bringup --params NAV2_PARAMS.yaml --repeat 3 --results runs.jsonl
 
-Each map runs through ``robot_world`` (free-running at ``--time-scale``, ``/clock``), Nav2 with
-``--params-file`` (default ``config/nav2/pioneer_navfn_dwb.yaml``; another file gets the overlay
-``config/nav2/ambiegen_overlay.yaml`` merged on, ``--overlay none`` for none; loop rates x time
-scale), started as our five nodes (``--nav2 ours``) or by nav2_bringup's ``navigation_launch.py``
-(``--nav2 bringup``: smoother, velocity smoother, collision monitor, ... as a Nav2 user runs it),
-and ``sut_adapter`` in Nav2 mode (``navigate_to_pose``; Nav2's own result decides unless
-``--early-verdicts``; the early verdict is recorded either way), all on the install's rclpy over
-``rmw_cyclonedds_cpp``; a recorder writes a robot bag per batch to ``--mcap-dir`` (outside the
-repository: they are large). Maps: ``random`` = valid maps of the profile (seeded) that have a
-clearance route (else they would be invalid tests); ``suite:FILE[,FILE...]`` = the best ``--count`` of
-searches' ``suite.json`` files (ranked by F1 together). ``--config FILE.yaml`` (its ``problem_config``, e.g. a nearer ``goal``) is
-the problem of the maps, the adapter's and the key's: a map with another goal is another test.
-
-Results: ``docs/results/nav2/runs.jsonl``, one JSON object per executed map, appended and never
-rewritten; a map already there with the same label and time scale is skipped, so a batch that
-was stopped resumes where it stopped. ``--report`` writes ``docs/results/nav2/README.md`` (per
-label: failure rate, distinct failures by place and kind, Nav2's error codes, failures per hour)
-and pictures of three failures (map, trajectory, Nav2's plan, where it failed).
+``runs.jsonl`` holds one JSON object per map that this script's batch runner executed on a real
+Nav2 (a private Jazzy + Nav2 build; ``robot_world`` at a time scale, Nav2 as our five nodes or
+``navigation_launch.py``, ``sut_adapter`` in Nav2 mode), appended and never rewritten. ``--report``
+writes ``docs/results/nav2/README.md`` from them (per label: failure rate, distinct failures by
+place and kind, Nav2's error codes, failures per hour) and pictures of three failures (map,
+trajectory, Nav2's plan, where it failed). ``--write-suite`` writes maps for ``ambiegen rerun``:
+``random`` = valid maps of the profile (seeded) that have a clearance route (else they would be
+invalid tests); ``suite:FILE[,FILE...]`` = the best ``--count`` of searches' ``suite.json`` files
+(ranked by F1 together); ``--config FILE.yaml`` gives their problem settings.
 """
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
-import os
-import shlex
 import sys
-import tempfile
-import time
 from collections import Counter
-from datetime import datetime, timezone
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 for extra in (REPO, REPO / "test", REPO / "test" / "real_ros"):
     sys.path.insert(0, str(extra))
 
-from _common import append_row, read_rows  # noqa: E402
+from _common import read_rows  # noqa: E402
 
 import numpy as np  # noqa: E402
 
 RESULTS = REPO / "docs" / "results" / "nav2"
 RUNS = RESULTS / "runs.jsonl"  # --results moves it (a trial run), the pictures and README stay here
-
-
-def scenario_key(scenario: dict, problem_config: dict | None = None) -> str:
-    data = scenario if not problem_config else {"scenario": scenario, "problem_config": problem_config}
-    return hashlib.sha1(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
 
 
 def problem_config(path: str) -> dict:
@@ -63,10 +43,6 @@ def problem_config(path: str) -> dict:
     import yaml
 
     return dict((yaml.safe_load(Path(path).read_text()) or {}).get("problem_config") or {})
-
-
-def done_keys(label: str, time_scale: float) -> set[str]:
-    return {r["key"] for r in read_rows(RUNS) if r["label"] == label and r["time_scale"] == time_scale}
 
 
 def pick_maps(spec: str, count: int, profile: str, seed: int, overrides: dict | None = None) -> list:
@@ -102,125 +78,21 @@ def pick_maps(spec: str, count: int, profile: str, seed: int, overrides: dict | 
     raise SystemExit(f"--maps: random | suite:FILE, got {spec!r}")
 
 
-def run_batch(args) -> int:
-    import jazzy_env as je
-    from helpers.sut_graph import Driver
-    from ambiegen_ros import launch_logic
-    from ambiegen_ros.core.runs import versions
-    from ambiegen_ros.problems import get_problem
-    from ambiegen_ros.ros.transport import create_node
-    from ambiegen_ros.sims.full_model import full_model_executor
-
-    os.environ[je.SETUP_VAR] = args.setup
-    info = je.probe()
-    if "skip" in info:
-        raise SystemExit(info["skip"])
+def write_suite(args) -> int:
+    """``--write-suite FILE``: the maps of ``--maps`` as a suite file (with their problem settings)
+    for ``ambiegen rerun FILE --stack bringup ...``, which runs them on Nav2 now; never over a file."""
     overrides = problem_config(args.config)
     maps = pick_maps(args.maps, args.count, args.profile, args.seed, overrides)
-    if args.pick:  # only these maps of the batch (0-based), e.g. to look at one failure again
-        maps = [maps[int(i)] for i in args.pick.split(",")]
-    done = done_keys(args.label, args.time_scale)
-    todo = [sc for sc in maps if scenario_key(sc.to_dict(), overrides) not in done]
-    print(f"{len(maps)} maps, {len(maps) - len(todo)} already in {RUNS}; running {len(todo)}")
-    if not todo:
-        return 0
-    from ambiegen_ros import nav2_params
-
-    stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
-    mcap_dir = Path(args.mcap_dir).expanduser()
-    mcap_dir.mkdir(parents=True, exist_ok=True)
-    mcap = mcap_dir / f"nav2_{args.label}_{stamp}.mcap"
-    ours = Path(args.params_file).resolve() == (REPO / "config" / "nav2" / "pioneer_navfn_dwb.yaml").resolve()
-    overlay = None if args.overlay == "none" or (ours and not args.overlay) else (
-        args.overlay or str(REPO / "config" / "nav2" / "ambiegen_overlay.yaml"))
-    params = nav2_params.merged_params(args.params_file, overlay, args.time_scale)
-    scaled = nav2_params.write_params(params, mcap.with_suffix(".nav2_params.yaml"),
-                                      f"{args.params_file} + {overlay}, rates x {args.time_scale:g}")
-    speed = nav2_params.top_speed(params)
-    server = params["controller_server"]["ros__parameters"]
-    controller = str(server[server["controller_plugins"][0]]["plugin"])
-    domain = args.domain_id
-    ros = je.ros_env(domain)
-    logs = Path(tempfile.mkdtemp(prefix=f"nav2_{args.label}_"))
-    graph = je.Graph(logs)
-    install = je.working_tree_install(logs / "ws")  # rclpy needs ambiegen_msgs built by colcon
-    run = lambda executable, **p: f"ros2 run ambiegen_ros {executable} {je.ros_args(**p)}"  # noqa: E731
-    graph.ros("world", run("robot_world", time_scale=args.time_scale, seed=args.seed,
-                                collision_topic="/collision", paired_start=True,
-                                **{f"sim.{k}": v for k, v in (o.split("=", 1) for o in args.world)}),
-              install, ros)
-    if args.nav2 == "bringup":
-        graph.ros("nav2", f"ros2 launch nav2_bringup navigation_launch.py use_sim_time:=true autostart:=true "
-                          f"use_composition:=False params_file:={scaled}", install, ros)
-    else:
-        for name, package, executable in launch_logic.NAV2_NODES:
-            fixed = " ".join("-p " + shlex.quote(f"{k}:={json.dumps(v)}")
-                             for k, v in launch_logic.nav2_node_parameters(name).items())
-            graph.ros(name, f"ros2 run {package} {executable} --ros-args --params-file {scaled} {fixed} "
-                            f"-r __node:={name}", install, ros)
-    graph.ros("adapter", run("sut_adapter", problem="robot", worker_id="nav2", goal_mode="action",
-                             early_verdicts=args.early_verdicts, time_limit_speed=speed or 0.0,
-                             known_failures=str(REPO / "config" / "nav2" / "known_failures.yaml"),
-                              time_scale=args.time_scale, collision_topic="/collision", plan_topic="/plan", tick_period=0.02,
-                              map_upsample=args.map_upsample,
-                              settle_time=1.0, start_timeout=120.0, profile=args.profile,
-                              **({"config_file": str(Path(args.config).resolve())} if args.config else {}),
-                              **{f"oracle.{k}": v for k, v in (o.split("=", 1) for o in args.oracle)}),
-              install, ros)
-    graph.venv("recorder", "ambiegen_ros.nodes.recorder", {"output": str(mcap),
-                                                          "extra_topics": ",".join(launch_logic.NAV2_TOPICS)},
-               je.venv_env(domain))
-    os.environ.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="SUBNET", AMBIEGEN_TRANSPORT="dds")
-    node = create_node("nav2_maps", argv=[])
-    p = get_problem("robot", {**overrides, "profile": args.profile})
-    sim_cfg = full_model_executor(p).config
-
-    def limit(sc) -> float:  # a safety net: twice the oracle's own time limit (from the A* length) plus slack
-        route = float(p.evaluate_scenarios([sc]).metrics["path_length"][0])  # the A* length, whatever F1 is
-        return 2 * sim_cfg.time_limit(route, speed) / args.time_scale + 300.0
-    print(f"logs in {logs}; bag {mcap}")
-    try:
-        driver = Driver(node, p)
-        driver.wait_matched(count=2, timeout=300)  # the adapter and the recorder
-        for i, sc in enumerate(todo):
-            run_id = f"{args.label}-{stamp}-{i}"
-            t0, w0 = time.monotonic(), time.time_ns()
-            driver.send(run_id, [sc])
-            (res,) = driver.wait(run_id, 1, limit(sc))
-            wall = time.monotonic() - t0
-            if res is None:
-                print(f"map {i}: no answer within {limit(sc):.0f} s; stopping (see {logs})")
-                return 1
-            m = res.metrics
-            traj = np.asarray(res.trajectory)[::10].round(3).tolist() if res.trajectory is not None else None
-            row = {"label": args.label, "time_scale": args.time_scale, "key": scenario_key(sc.to_dict(), overrides),
-                   "profile": args.profile, "problem_config": overrides, "oracle": args.oracle,
-                   "world": args.world,
-                   "params_file": str(args.params_file), "overlay": overlay, "nav2": args.nav2,
-                   "controller": controller, "early_verdicts": args.early_verdicts,
-                   "early_verdict": m.get("early_verdict"), "early_detail": m.get("early_detail"),
-                   "early_time": m.get("early_time"), "decided_by": m.get("decided_by"),
-                   "time_limit": m.get("time_limit"), "route_length_m": m.get("route_length_m"),
-                   "map_side_m": m.get("map_side_m"), "known_failure": m.get("known_failure"),
-                   "scenario": sc.to_dict(),
-                   "failure_kind": res.failure_kind, "failed": res.failed, "detail": res.detail,
-                   "nav2_status": m.get("nav2_status"), "nav2_error_code": m.get("nav2_error_code"),
-                   "nav2_error_msg": m.get("nav2_error_msg"), "nav2_recoveries": m.get("nav2_recoveries"),
-                   "contacts_not_at_fault": m.get("contacts_not_at_fault"),
-                   "reference_check": m.get("reference_check"), "plans": m.get("plans"),
-                   "plan_length_m": m.get("plan_length_m"), "time": m.get("time"), "wall_s": round(wall, 2),
-                   "failure_point": list(res.failure_point) if res.failure_point is not None else None,
-                   "trajectory_every_10": traj, "mcap": str(mcap), "wall_start_ns": w0, "wall_end_ns": time.time_ns(),
-                   "when": datetime.now(timezone.utc).isoformat(timespec="seconds"), "versions": versions()}
-            append_row(RUNS, row)
-            print(f"map {i}: {res.failure_kind} ({res.detail}); Nav2 {m.get('nav2_status')} "
-                  f"{m.get('nav2_error_code')} {m.get('nav2_error_msg') or ''}, recoveries {m.get('nav2_recoveries')}; "
-                  f"early {m.get('early_verdict')} "
-                  f"({m.get('early_detail')}); {wall:.0f} s wall", flush=True)
-    finally:
-        node.shutdown()
-        for name in list(graph.procs):
-            graph.stop(name)
+    out = Path(args.write_suite)
+    if out.exists():
+        print(f"--write-suite: {out} exists (not overwritten)", file=sys.stderr)
+        return 2
+    settings = {**overrides, "profile": args.profile}
+    doc = {"source": f"bench/nav2_maps.py --maps {args.maps} --count {args.count} --seed {args.seed}",
+           "problem": "robot", "problem_config": settings, "suite": [{"scenario": sc.to_dict()} for sc in maps]}
+    out.write_text(json.dumps(doc, indent=1) + "\n")
+    print(f"{out}: {len(maps)} maps; run them: ambiegen rerun {out} --stack bringup --params NAV2_PARAMS.yaml "
+          "--repeat 3 --results RESULTS.jsonl")
     return 0
 
 
@@ -450,31 +322,13 @@ def picture(spec: str) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--setup", default=os.path.expanduser("~/jazzy-verify/install/setup.bash"))
     ap.add_argument("--maps", default="random", help="random | suite:FILE[,FILE...]")
     ap.add_argument("--count", type=int, default=20)
-    ap.add_argument("--pick", default="", metavar="I,J,...", help="run only these maps of the batch (0-based)")
     ap.add_argument("--profile", default="refined", choices=("replication", "refined"))
     ap.add_argument("--seed", type=int, default=3)
-    ap.add_argument("--label", default="random-refined")
-    ap.add_argument("--time-scale", type=float, default=1.0)
-    ap.add_argument("--map-upsample", type=int, default=5)
-    ap.add_argument("--params-file", default=str(REPO / "config" / "nav2" / "pioneer_navfn_dwb.yaml"))
-    ap.add_argument("--overlay", default="", help="merged onto --params-file ('' = config/nav2/ambiegen_overlay.yaml "
-                                                  "for a params file not ours; none = none)")
-    ap.add_argument("--nav2", default="ours", choices=("ours", "bringup"),
-                    help="our five Nav2 nodes, or nav2_bringup's navigation_launch.py")
-    ap.add_argument("--early-verdicts", action="store_true",
-                    help="the paper's stall/loiter monitors decide (default: Nav2's own result)")
-    ap.add_argument("--mcap-dir", default="~/nav2-bags")
     ap.add_argument("--config", default="", metavar="FILE.yaml", help="problem_config of the maps (e.g. a nearer goal)")
-    ap.add_argument("--oracle", action="append", default=[], metavar="FIELD=VALUE",
-                    help="an adapter oracle threshold (e.g. stall_time=1000: let Nav2 give its own verdict); "
-                         "use a label of its own")
-    ap.add_argument("--world", action="append", default=[], metavar="FIELD=VALUE",
-                    help="a robot_world option (sim.FIELD, e.g. fov_deg=360 with beams=361: a laser that sees "
-                         "behind the robot, as the robots Jazzy's defaults were tuned on); use a label of its own")
-    ap.add_argument("--domain-id", type=int, default=7, help="outside the test suite's pool (10-101)")
+    ap.add_argument("--write-suite", metavar="FILE.json", help="write the maps of --maps as a suite file for "
+                    "`ambiegen rerun` (never over a file)")
     ap.add_argument("--report", action="store_true")
     ap.add_argument("--picture", metavar="LABEL:K:FILE", help="draw the K-th failed run of batch LABEL to FILE "
                     "(from runs.jsonl; Nav2's plan only when the row's bag is on this machine)")
@@ -484,7 +338,9 @@ def main(argv: list[str] | None = None) -> int:
         globals()["RUNS"] = Path(args.results).resolve()
     if args.picture:
         return picture(args.picture)
-    return report(args) if args.report else run_batch(args)
+    if args.write_suite:
+        return write_suite(args)
+    return report(args) if args.report else ap.error("--report, --picture or --write-suite (runs: `ambiegen rerun`)")
 
 
 if __name__ == "__main__":

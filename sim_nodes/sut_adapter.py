@@ -89,13 +89,15 @@ from ambiegen_ros.ros.qos import DEFAULT, LATCHED, STREAM, Qos
 from ambiegen_ros.sims import Outcome, known_failures, reference
 from ambiegen_ros.sims.full_model import FullModelExecutor, sim_config
 from ambiegen_ros.sims.oracles import CarJudge, RobotJudge, ThermostatJudge, warm_up_judge
+from ambiegen_ros.sims.obstacles import contact_speeds
 from ambiegen_ros.sims.robot import polyline_length
 from ambiegen_ros.sims.stamp_order import DECISION, STATE, StampOrder
 from ambiegen_ros.nodes import run_node
 from sim_nodes.worker import WorkerEndpoint, load_problem, worker_node
 
 ORACLE_FIELDS = {
-    "robot": ("radius", "goal_tolerance", "stall_radius", "stall_time", "timeout", "clearance_cells"),
+    "robot": ("radius", "goal_tolerance", "stall_radius", "stall_time", "timeout", "clearance_cells",
+              "contact_fault_speed"),
     "vehicle": ("length", "width", "rear_overhang", "lane_width", "oob_tolerance", "stall_distance",
                 "stall_time", "goal_distance", "timeout_base", "timeout_speed"),
     "thermostat": ("requirement_rmse", "band"),
@@ -678,6 +680,9 @@ class SutAdapter:
                                               else tuple(outcome.trajectory[-1][:2]))
             outcome.metrics = {**outcome.metrics,
                                "unmapped_obstacle_m": known_failures.unmapped_obstacle_m(self.problem, job.scenario, where)}
+        speeds = contact_speeds(outcome.detail) if hazards else None
+        if speeds:  # a contact with a person: both speeds along the line of contact, as metrics
+            outcome.metrics = {**outcome.metrics, **{f"contact_{k}": v for k, v in speeds.items()}}
         if self.known_failures and outcome.failed:
             outcome = known_failures.mark(outcome, self.known_failures)
         wall = time.monotonic() - job.started

@@ -50,6 +50,7 @@ FLOORS: dict[str, int] = {
     "ambiegen_ros.nodes": 3,
     "sim_nodes": 3,
     "ambiegen_ros.campaign": 3,
+    "ambiegen_ros.trials": 3,
     "ambiegen_ros.experiment": 3,
     "ambiegen_ros.run_config": 3,
     "ambiegen_ros.launch_logic": 3,

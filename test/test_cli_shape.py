@@ -36,5 +36,6 @@ def test_help_lists_the_commands_in_their_usual_order():
     assert run.returncode == 0, run.stderr
     listed = [line.split()[0] for line in run.stdout.splitlines()
               if line.startswith("    ") and not line.startswith("     ")]
-    assert listed == ["search", "evaluate", "show", "execute", "campaign", "replay", "recover", "experiment",
+    assert listed == ["search", "evaluate", "show", "execute", "campaign", "replay", "recover", "rerun", "compare",
+                      "experiment",
                       "nav2-params", "doctor"]

@@ -198,12 +198,15 @@ def obstacle_markers(make: Make, now_ns: int, obstacles: Any, t: float, frame_id
     return make("visualization_msgs/msg/MarkerArray", markers=markers)
 
 
+STATUS_TEXT_LIMIT = 240  # characters of a status's reason kept (a sentence with its numbers: a contact's speeds)
+
+
 def status_note(msg: Any) -> str | None:
     """The first WARN status's message of a ``DiagnosticArray`` (``status_report``'s ``note``), else None."""
     for status in msg.status:
         level = status.level[0] if isinstance(status.level, (bytes, bytearray)) else int(status.level)
         if level == STATUS_WARN:
-            return clip_text(status.message) or "no reason given"
+            return clip_text(status.message, STATUS_TEXT_LIMIT) or "no reason given"
     return None
 
 
@@ -213,7 +216,8 @@ def status_problem(msg: Any) -> tuple[int, str | None]:
     for status in msg.status:
         level = status.level[0] if isinstance(status.level, (bytes, bytearray)) else int(status.level)
         if level == STATUS_ERROR:
-            return stamp_ns(msg.header), clip_text(status.message) or clip_text(status.name) or "no reason given"
+            return stamp_ns(msg.header), clip_text(status.message, STATUS_TEXT_LIMIT) or clip_text(status.name) \
+                or "no reason given"
     return stamp_ns(msg.header), None
 
 

@@ -17,6 +17,7 @@ is in contact. Inputs are checked on construction and a bad one raises ``Scenari
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -383,6 +384,38 @@ def _slab(origin: float, direction: np.ndarray, lo: np.ndarray, hi: np.ndarray):
 
 
 # --- who hit whom --------------------------------------------------------------------------------
+CONTACT_SPEEDS = re.compile(r"moving at (?P<robot>-?[0-9.]+) m/s towards it \((?P<along>-?[0-9.]+) m/s along the line "
+                            r"of contact; the person (?P<person>[-+]?[0-9.]+) m/s towards the robot\)")
+
+
+def person_contact_detail(k: int, point, v: float, along: float, person_along: float) -> str:
+    """The words of an at-fault contact with person ``k``: where, the robot's speed, and both speeds
+    along the line of contact (robot centre to person centre; each positive towards the other).
+    ``contact_speeds`` reads them back: one format, written and read here. ``v`` is signed (< 0:
+    reversing), as the words always said."""
+    return (f"the robot drove into person {k} at ({point[0]:.2f}, {point[1]:.2f}) moving at {v:.2f} m/s towards "
+            f"it ({along:.2f} m/s along the line of contact; the person {person_along:+.2f} m/s towards the robot)")
+
+
+def contact_speeds(detail: str | None) -> dict[str, float] | None:
+    """``{"robot_mps", "robot_along_mps", "person_along_mps"}`` of a collision with a person, read
+    from its detail (``person_contact_detail``); None for anything else (a wall, a pass, older logs)."""
+    found = CONTACT_SPEEDS.search(detail or "")
+    if found is None:
+        return None
+    return {"robot_mps": float(found["robot"]), "robot_along_mps": float(found["along"]),
+            "person_along_mps": float(found["person"])}
+
+
+def speeds_along(robot_xy, yaw: float, v: float, person_xy, person_velocity) -> tuple[float, float]:
+    """(robot, person) speeds along the line between their centres, each positive towards the other."""
+    dx, dy = np.asarray(person_xy, dtype=float) - np.asarray(robot_xy, dtype=float)
+    norm = math.hypot(dx, dy) or 1.0
+    ux, uy = dx / norm, dy / norm
+    pvx, pvy = np.asarray(person_velocity, dtype=float)
+    return v * (math.cos(yaw) * ux + math.sin(yaw) * uy), -(pvx * ux + pvy * uy)
+
+
 def robot_at_fault(robot_xy, yaw: float, v: float, contact_xy, min_speed: float = 0.01) -> bool:
     """The driving-scenario convention: the robot is at fault only when it drives into the contact,
     moving (``|v| > min_speed``, ``v < 0`` reversing) with a velocity that has a positive component
@@ -442,4 +475,5 @@ def _nearest_on_box_surface(point: np.ndarray, box: np.ndarray) -> np.ndarray:
     return result
 
 
-__all__ = ["KINDS", "Obstacles", "Person", "contact_point", "placed_footprint", "robot_at_fault"]
+__all__ = ["KINDS", "Obstacles", "Person", "contact_point", "contact_speeds", "person_contact_detail", "placed_footprint",
+           "robot_at_fault", "speeds_along"]

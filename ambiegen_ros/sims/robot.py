@@ -151,6 +151,8 @@ class RobotSimConfig:
     timeout_route_factor: float = 2.0  # ... and at least this x route length / cruise_speed ...
     timeout_margin: float = 60.0  # ... + this [s]
     clearance_cells: int = 3  # clearance is measured to walls within this many cells (capped beyond)
+    # a contact with a person is the robot's only when it moves towards them faster than this [m/s]
+    contact_fault_speed: float = 0.01
     run_invalid: bool = False  # also simulate scenarios the problem calls invalid
     engine: str = "auto"  # laser and body clearance: numba (compiled, same numbers) | numpy | auto
 
@@ -166,7 +168,7 @@ class RobotSimConfig:
                 raise ScenarioError(f"option.{name}", "must be > 0")
         for name in ("laser_noise", "rdp_epsilon", "margin", "squeeze_margin", "squeeze_lookahead", "squeeze_speed",
                      "nd_min_speed", "nd_min_turn_rate_deg", "safety_dist", "proximity", "timeout_route_factor",
-                     "timeout_margin", "clearance_margin"):
+                     "timeout_margin", "clearance_margin", "contact_fault_speed"):
             if getattr(self, name) < 0:
                 raise ScenarioError(f"option.{name}", "must be >= 0")
         if self.beams < 3 or self.directions < 3:

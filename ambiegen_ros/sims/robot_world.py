@@ -33,7 +33,7 @@ from ..core.attributes import ScenarioError
 
 ENGINES = ("auto", "numba", "numpy")
 WORLD_FIELDS = ("dt", "max_speed", "max_accel", "max_turn_accel", "laser_range", "fov_deg", "beams", "laser_noise",
-                "clearance_cells", "engine")
+                "clearance_cells", "engine", "contact_fault_speed")
 """The config fields ``RobotWorld`` reads (``sims.robot.RobotSimConfig`` has them all)."""
 
 
@@ -405,7 +405,8 @@ class RobotWorld:
     ``obstacles`` (``sims.obstacles.Obstacles``, issue 48): what is in the world but not on the grid.
     The laser sees them; boxes and posts stop the body as walls do; people walk their paths on the
     world's clock ``t`` (seconds since the world started) and never stop for the robot. A contact
-    with a person is the robot's fault only when it moves towards it (``robot_at_fault``): then the
+    with a person is the robot's fault only when it moves towards it faster than
+    ``config.contact_fault_speed`` (``robot_at_fault``): then the
     body stops and ``person_contact`` says so (a collision); otherwise it is counted in
     ``contacts_not_at_fault`` and the robot goes on.
     """
@@ -502,7 +503,7 @@ class RobotWorld:
     def _meet_people(self, v: float) -> None:
         """Contacts with people after a step: the robot's fault (it moved towards the person: the body
         stops, ``person_contact``) or not (counted once per contact)."""
-        from .obstacles import contact_point, robot_at_fault
+        from .obstacles import contact_point, person_contact_detail, robot_at_fault, speeds_along
 
         people = self.obstacles.people
         circles = self.obstacles.circles_at(self.t)[-len(people):]
@@ -517,9 +518,11 @@ class RobotWorld:
             if k in self._touching or self.person_contact is not None:
                 continue
             point = contact_point(self.x, self.y, self.yaw, self.footprint, "person", 0, single, self.t)
-            if robot_at_fault((self.x, self.y), self.yaw, v, point):
-                self.person_contact = (f"the robot drove into person {k} at ({point[0]:.2f}, {point[1]:.2f}) "
-                                       f"moving at {v:.2f} m/s towards it")
+            if robot_at_fault((self.x, self.y), self.yaw, v, point, min_speed=self.cfg.contact_fault_speed):
+                person = people[k]  # how they moved in this step: their velocity along the line of contact
+                walked = (person.position(self.t) - person.position(max(self.t - self.cfg.dt, 0.0))) / self.cfg.dt
+                along, person_along = speeds_along((self.x, self.y), self.yaw, v, (cx, cy), walked)
+                self.person_contact = person_contact_detail(k, point, v, along, person_along)
                 self.v = self.w = 0.0
             else:
                 self.contacts_not_at_fault += 1

@@ -76,40 +76,33 @@ def graph(tmp_path, monkeypatch, ros_domain):
 
 
 class Driver:
-    """Publishes scenario messages like the generator and collects every result."""
+    """Publishes scenario messages like the generator and collects every result (the runner's
+    ``trials.runner.SuiteDriver``, sending a batch at once)."""
 
     def __init__(self, node, problem):
         from ambiegen_ros.ros import topics
         from ambiegen_ros.ros.qos import STREAM
+        from ambiegen_ros.trials.runner import SuiteDriver
 
+        self.suite_driver = SuiteDriver(node, problem)
         self.node, self.problem, self.conv = node, problem, conversions
-        self.pub = node.create_publisher(topics.SCENARIO_TYPES[problem.name], topics.scenarios(problem.name), STREAM)
-        self.results: dict[tuple[str, int], Any] = {}
-        self.workers: dict[tuple[str, int], str] = {}
+        self.pub = self.suite_driver.pub
+        self.results = self.suite_driver.results
+        self.workers = self.suite_driver.workers
         self.scenarios: dict[tuple[str, int], Any] = {}
-        node.create_subscription(topics.RESULT_TYPE, topics.RESULTS, self.on_result, STREAM)
         node.create_subscription(topics.SCENARIO_TYPES[problem.name], topics.scenarios(problem.name),
                                  self.on_scenario, STREAM)
-
-    def on_result(self, msg) -> None:
-        key = (msg.run_id, int(msg.scenario_id))
-        self.results.setdefault(key, self.conv.outcome_from_message(msg))
-        self.workers.setdefault(key, msg.worker)
 
     def on_scenario(self, msg) -> None:
         scenario, _ = self.conv.scenario_from_message(self.problem, msg)
         self.scenarios[(msg.meta.run_id, int(msg.meta.scenario_id))] = scenario
 
     def wait_matched(self, count: int = 1, timeout: float = 120.0) -> None:  # a safety net
-        assert self.node.spin_until(lambda: self.pub.subscription_count() >= count + 1, timeout), "adapter not matched"
+        assert self.suite_driver.wait_matched(count + 1, timeout), "adapter not matched"
 
     def send(self, run_id: str, scenarios: list) -> None:
-        from ambiegen_ros.ros.conversions import ScenarioMeta
-
         for i, sc in enumerate(scenarios):
-            msg = self.conv.scenario_message(self.node.new_message, self.node.now_ns(), self.problem, sc,
-                                             ScenarioMeta(run_id, i))
-            self.pub.publish(msg)
+            self.suite_driver.send(run_id, i, sc)
 
     def wait(self, run_id: str, count: int, timeout: float) -> list:
         done = lambda: sum(k[0] == run_id for k in self.results) >= count  # noqa: E731

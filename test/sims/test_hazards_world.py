@@ -83,6 +83,42 @@ def test_driving_into_a_person_is_a_collision():
         assert "drove into person 0" in run["detail"]
 
 
+def test_a_contact_reports_both_speeds_along_the_line_of_contact():
+    """Head-on: the robot at 0.3 m/s, the person walking at 1.1 m/s towards it. The detail says both
+    speeds along the line between their centres, and ``contact_speeds`` reads them back."""
+    from ambiegen_ros.sims.obstacles import contact_speeds
+
+    walker = Person(np.array([[9.0, 5.0], [2.0, 5.0]]), speed=1.1, delay=0.0, radius=0.25)
+    w = RobotWorld(room(), 1.0, CFG, (5.0, 5.0, 0.0), obstacles=Obstacles(people=(walker,)))
+    for _ in range(60):
+        w.step(0.3, 0.0)
+        if w.person_contact:
+            break
+    speeds = contact_speeds(w.person_contact)
+    assert speeds is not None, w.person_contact
+    assert speeds["robot_mps"] == pytest.approx(0.3, abs=0.005)
+    assert speeds["robot_along_mps"] == pytest.approx(0.3, abs=0.005)  # head-on: all of it along the line
+    assert speeds["person_along_mps"] == pytest.approx(1.1, abs=0.005)
+    assert contact_speeds("collision at (1.00, 2.00) (reported on /collision: 'touching a wall, box or post')") is None
+
+
+def test_a_slow_contact_is_charged_only_above_the_fault_speed():
+    """The robot creeping at 0.08 m/s into a person walking at it: charged at the default threshold
+    (0.01 m/s, as always), not with ``contact_fault_speed`` 0.1 (then the person walked into it)."""
+    import dataclasses
+
+    def creep(cfg):
+        walker = Person(np.array([[8.0, 5.0], [2.0, 5.0]]), speed=1.1, delay=0.0, radius=0.25)
+        w = RobotWorld(room(), 1.0, cfg, (5.0, 5.0, 0.0), obstacles=Obstacles(people=(walker,)))
+        for _ in range(60):
+            w.step(0.08, 0.0)
+        return w
+
+    strict, lenient = creep(CFG), creep(dataclasses.replace(CFG, contact_fault_speed=0.1))
+    assert strict.person_contact is not None and "moving at 0.08 m/s" in strict.person_contact
+    assert lenient.person_contact is None and lenient.contacts_not_at_fault == 1
+
+
 def test_the_true_world_route_keeps_clear_of_unmapped_obstacles():
     """The gap is 2 m wide: on the map a route passes it; a 1 m box in its middle leaves 0.5 m
     on each side, less than the 0.72 m the footprint and margin need: no route in the world."""

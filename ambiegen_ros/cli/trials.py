@@ -1,0 +1,178 @@
+"""`ambiegen rerun` and `ambiegen compare`: a suite N times on a stack, on one or more params files.
+
+The work is ``ambiegen_ros.trials``; this module turns flags into its calls and prints its tables.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import shutil
+import sys
+from pathlib import Path
+
+from .common import BadInput
+
+STACK_HELP = ("nd: our Nearness Diagram robot on Nav2's topics (no ROS needed); bringup: nav2_bringup's "
+              "navigation_launch.py with the params; ours: the minimum Nav2 (controller, planner, behaviours, BT "
+              "navigator) with the params; external: your Nav2, which you start when told (Nav2 stacks need a "
+              "sourced ROS 2 Jazzy)")
+
+
+def _common(p: argparse.ArgumentParser, many: bool) -> None:
+    from ..core.names import PROFILES
+    from ..trials.configs import STACKS
+    from .common import add_config_option
+
+    p.add_argument("suite", nargs="+", metavar="SUITE", help="suite files (JSON: a search's suite.json, a write-up's "
+                   "*_suite.json, one scenario) or a campaign's MCAP (its certified failures)")
+    p.add_argument("--stack", required=True, choices=STACKS, help=STACK_HELP)
+    p.add_argument("--params", action="append", default=[], metavar="[LABEL=]FILE[+FILE...]",
+                   help=("a configuration: params files merged in order (the first is the stack's, e.g. Jazzy's "
+                         "nav2_params.yaml; the others overlays; fix:NAME is the package's config/nav2/fixes/NAME.yaml)"
+                         + ("; give two or more, the first is the baseline" if many else
+                            "; one (our ND stack: optional)")))
+    p.add_argument("--repeat", type=int, default=3, metavar="N", help="runs of each scenario on each configuration "
+                   "(default 3); runs already in --results count")
+    p.add_argument("--results", required=True, metavar="FILE.jsonl", help="the results file: one row per run, "
+                   "appended (never rewritten); the command resumes from it")
+    p.add_argument("--bags", metavar="DIR", help="where each configuration's bag, node logs and merged params go, "
+                   "one folder per run of the command (default: RESULTS's folder / <its name>_bags)")
+    p.add_argument("--out", metavar="DIR", help="where the tables (markdown, JSON)" + (" and pictures" if many else "")
+                   + " are written, under new names (default: " + ("RESULTS's folder / <its name>_reports)" if many
+                                                                   else "printed only)"))
+    add_config_option(p)
+    p.add_argument("--profile", choices=PROFILES, help="fidelity profile of the scenarios' problem (default: the "
+                   "suite's or --config's)")
+    p.add_argument("--time-scale", type=float, default=1.0, help="Nav2 stacks: simulated seconds per wall second "
+                   "(default 1: real time; Nav2's loop rates are scaled to it)")
+    p.add_argument("--seed", type=int, default=0, help="the world's seed (laser noise); recorded (default 0)")
+    p.add_argument("--fault-speed", type=float, metavar="M/S", help="a contact with a person is charged to the robot "
+                   "only when it moves towards them faster than this (default: the world's, 0.01 m/s)")
+    p.add_argument("--overlay", default="", metavar="FILE.yaml|none", help="Nav2 stacks: merged on the first params "
+                   "file (default: the package's config/nav2/ambiegen_overlay.yaml, our world's frames and body)")
+    p.add_argument("--known-failures", default="", metavar="FILE.yaml|none", help="Nav2 stacks: failures Nav2's "
+                   "engineers know, recorded as known (default: the package's config/nav2/known_failures.yaml)")
+    p.add_argument("--early-verdicts", action="store_true", help="Nav2 stacks: the paper's stall and loitering "
+                   "monitors decide instead of Nav2's own result")
+    p.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID of the stack and this command (default: inherited)")
+    p.add_argument("--start-timeout", type=float, default=120.0, help="seconds the adapter waits for the stack "
+                   "(default 120; external: 600)")
+    p.add_argument("--no-run", action="store_true", help="run nothing: the tables of what --results holds")
+
+
+def register(sub) -> None:
+    p = sub.add_parser("rerun", help="run a suite on a stack N times each: per scenario, passes and failures by kind "
+                                     "(k of N), appended to a results file that resumes",
+                       description="Does a failure reproduce? Each scenario of the suite runs --repeat times on the "
+                                   "stack with one params configuration; the table gives, per scenario, its passes "
+                                   "(near misses) and failures by kind, k of N.")
+    _common(p, many=False)
+    p.set_defaults(func=cmd_trials, many=False)
+    p = sub.add_parser("compare", help="run a suite on two or more params files (and behaviour trees), N times each: "
+                                       "what each fixes, keeps and breaks against the first, Fisher's test, the cost, "
+                                       "pictures of what changed",
+                       description="Is it my configuration, and does the usual fix fix it? Every scenario runs "
+                                   "--repeat times on each configuration; the tables give k of N per scenario and "
+                                   "configuration with Fisher's exact test against the first (the baseline), the "
+                                   "failures each one fixes, keeps and breaks, and its cost on the scenarios the "
+                                   "baseline passes (time to goal, recoveries: median, 90th percentile); a picture "
+                                   "of the runs side by side for every scenario whose verdict changed.")
+    _common(p, many=True)
+    p.set_defaults(func=cmd_trials, many=True)
+
+
+def _settings(args, results: Path):
+    from ..nav2_params import package_file
+    from ..trials.configs import NAV2_STACKS
+    from ..trials.runner import TrialSettings
+
+    nav2 = args.stack in NAV2_STACKS
+    known = None
+    if nav2 and args.known_failures.lower() != "none":
+        known = args.known_failures or package_file("config", "nav2", "known_failures.yaml")
+        if known and not Path(known).is_file():
+            raise BadInput(f"--known-failures {known}: no such file")
+    bags = Path(args.bags) if args.bags else results.parent / f"{results.stem}_bags"
+    return TrialSettings(stack=args.stack, results=results, bags=bags, repeat=args.repeat, time_scale=args.time_scale,
+                         seed=args.seed, domain_id=args.domain_id, known_failures=str(known) if known else None,
+                         fault_speed=args.fault_speed, early_verdicts=args.early_verdicts,
+                         start_timeout=args.start_timeout)
+
+
+def _overlay(args) -> str | None:
+    from ..nav2_params import OVERLAY_FILE, package_file
+
+    if args.overlay.lower() == "none":
+        return None
+    overlay = args.overlay or package_file(*OVERLAY_FILE)
+    if not overlay or not Path(overlay).is_file():
+        raise BadInput(f"--overlay {args.overlay or '/'.join(OVERLAY_FILE)}: no such file")
+    return str(overlay)
+
+
+def _need_ros(stack: str) -> None:
+    if importlib.util.find_spec("rclpy") is None:
+        raise BadInput(f"--stack {stack}: a Nav2 stack needs ROS 2 (rclpy): source /opt/ros/jazzy/setup.bash and "
+                       "this package's install/setup.bash first (--stack nd runs without ROS)")
+    if stack != "external" and shutil.which("ros2") is None:
+        raise BadInput(f"--stack {stack}: no `ros2` on PATH (source /opt/ros/jazzy/setup.bash)")
+
+
+def cmd_trials(args) -> int:
+    from ..trials import report
+    from ..trials.configs import NAV2_STACKS, StackConfig, parse_config, prepare
+    from ..trials.runner import StackStopped, run_trials, utc_stamp
+    from ..trials.suite import load_suite
+
+    if args.repeat < 1:
+        raise BadInput("--repeat: at least 1")
+    if not args.time_scale > 0:
+        raise BadInput("--time-scale: must be > 0")
+    if args.fault_speed is not None and args.fault_speed < 0:
+        raise BadInput("--fault-speed: must be >= 0")
+    configs = [parse_config(spec) for spec in args.params]
+    if args.many and len(configs) < 2:
+        raise BadInput("compare: give two or more --params (the first is the baseline)")
+    if not args.many and len(configs) > 1:
+        raise BadInput("rerun: one --params (compare runs several)")
+    if not configs:
+        if args.stack in NAV2_STACKS:
+            raise BadInput(f"--stack {args.stack}: name your Nav2 params with --params (e.g. Jazzy's "
+                           "/opt/ros/jazzy/share/nav2_bringup/params/nav2_params.yaml)")
+        configs = [StackConfig("nd", ())]
+    labels = [c.label for c in configs]
+    if len(set(labels)) < len(labels):
+        raise BadInput(f"--params: two configurations are called {sorted(l for l in labels if labels.count(l) > 1)[0]!r}"
+                       " (give each a LABEL=)")
+    results = Path(args.results)
+    suite = load_suite(args.suite, args.config, args.profile)
+    if suite.problem != "robot":
+        raise BadInput(f"a stack runs robot scenarios; the suite's are {suite.problem}")
+    print(f"suite: {len(suite.entries)} scenarios from {', '.join(args.suite)}"
+          + (f" ({suite.duplicates} given twice, run once)" if suite.duplicates else ""))
+    settings = _settings(args, results)
+    code = 0
+    if not args.no_run:
+        if args.stack in NAV2_STACKS:
+            _need_ros(args.stack)
+        overlay = _overlay(args) if args.stack in NAV2_STACKS else None
+        settings.bags.mkdir(parents=True, exist_ok=True)
+        prepared = [prepare(c, args.stack, overlay, args.time_scale, settings.bags) for c in configs]
+        try:
+            run_trials(suite, prepared, settings)
+        except StackStopped as exc:
+            print(f"ambiegen {args.command}: stopped: {exc}", file=sys.stderr)
+            code = 1
+        except KeyboardInterrupt:
+            print(f"ambiegen {args.command}: interrupted; the runs made are in {results} (the same command resumes)",
+                  file=sys.stderr)
+            code = 130
+    md, _ = report.report(suite, results, labels)
+    print("\n".join(md))
+    out = args.out or (str(results.parent / f"{results.stem}_reports") if args.many else None)
+    if out:
+        written = report.write(suite, results, labels, out, utc_stamp(), "compare" if args.many else "rerun")
+        print(f"written: {written['md']}, {written['json']}")
+        for picture in written.get("pictures", []):
+            print(f"picture: {picture}")
+    return code

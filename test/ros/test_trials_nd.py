@@ -1,0 +1,118 @@
+"""``ambiegen rerun`` and ``ambiegen compare`` for real, on our ND stack (no ROS needed).
+
+Each command is a real subprocess that starts ``robot_world``, ``nd_driver``, ``sut_adapter`` and a
+recorder over Cyclone DDS, sends the suite's scenarios one at a time and appends a row per run. The
+ND stack in lockstep is deterministic, so every run of a scenario must get the in-process full
+model's verdict (fed the wire's number formats), N of N; the bag, read back with the mcap library
+alone, holds every scenario sent and every result; a second invocation resumes instead of
+repeating; a comparison writes its tables and a picture per scenario whose verdict changed.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from collections import Counter
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+
+REPO = Path(__file__).resolve().parents[2]
+for extra in (REPO, REPO / "test"):
+    if str(extra) not in sys.path:
+        sys.path.insert(0, str(extra))
+
+from ambiegen_ros.problems import get_problem  # noqa: E402
+from ambiegen_ros.ros import topics  # noqa: E402
+from ambiegen_ros.sims.full_model import full_model_executor  # noqa: E402
+from ambiegen_ros.trials import report  # noqa: E402
+from ambiegen_ros.trials.rows import TrialLog  # noqa: E402
+from ambiegen_ros.trials.suite import load_suite  # noqa: E402
+from helpers.wire import wire_emulation  # noqa: E402
+
+pytestmark = pytest.mark.skipif(os.environ.get("AMBIEGEN_TRANSPORT", "auto") == "rclpy",
+                                reason="these tests drive the DDS backend")
+CASES = json.loads((REPO / "test" / "data" / "robot_hazards_nd.json").read_text())
+CONFIG = str(REPO / CASES["config"])
+PICKED = (0, 1, 3)  # a pass, a collision with a person, a stall
+
+
+def ambiegen(*args: str, timeout: float = 600) -> subprocess.CompletedProcess:
+    env = {k: v for k, v in os.environ.items() if k != "AMBIEGEN_TRANSPORT"}
+    return subprocess.run([sys.executable, "-m", "ambiegen_ros", *args], capture_output=True, text=True, cwd=REPO,
+                          env=env, timeout=timeout)
+
+
+@pytest.fixture
+def suite_file(tmp_path) -> Path:
+    path = tmp_path / "hazards_suite.json"
+    path.write_text(json.dumps({"suite": [{"scenario": CASES["cases"][i]["scenario"], "name": f"case{i}"}
+                                          for i in PICKED]}))
+    return path
+
+
+def expected_verdicts(suite) -> dict[str, str]:
+    problem = get_problem(suite.problem, suite.problem_config)
+    full = full_model_executor(problem)
+    with wire_emulation():
+        return {e.key: full.execute(problem.parse(e.scenario), seed=0).verdict for e in suite.entries}
+
+
+def test_rerun_gives_every_run_its_verdict_logs_every_scenario_and_resumes(tmp_path, suite_file, ros_domain):
+    results = tmp_path / "trials.jsonl"
+    args = [str(suite_file), "--stack", "nd", "--config", CONFIG, "--results", str(results),
+            "--domain-id", str(ros_domain)]
+    run = ambiegen("rerun", *args, "--repeat", "2")
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    suite = load_suite([str(suite_file)], CONFIG)
+    expected = expected_verdicts(suite)
+    assert sorted(expected.values()) == ["FAIL(collision)", "FAIL(stall)", "PASS"]
+    rows = TrialLog(results).rows()
+    assert Counter((r["key"], r["repeat"]) for r in rows) == {(k, n): 1 for k in expected for n in (1, 2)}
+    for r in rows:
+        assert r["verdict"] == expected[r["key"]], r["detail"]
+        assert r["label"] == "nd" and r["stack"] == "nd" and r["seed"] == 0 and r["versions"]["ambiegen_ros"]
+    hit = next(r for r in rows if r["failure_kind"] == "collision")
+    assert hit["contact"]["robot_mps"] > 0.01 and "person_along_mps" in hit["contact"]  # both speeds, in the row
+    assert "| case1 | 2 | 0 | 2 of 2: collision 2 |" in run.stdout  # the table: k of N by kind
+    # the bag, read by the mcap library alone: every scenario sent and every result, and what ran
+    bags = {r["bag"] for r in rows}
+    assert len(bags) == 1
+    with open(bags.pop(), "rb") as fh:
+        counts = Counter(channel.topic for _, channel, _ in make_reader(fh).iter_messages())
+    assert counts[topics.scenarios("robot")] == 6 and counts[topics.RESULTS] == 6 and counts[topics.RUN_CONFIG] == 1
+    assert counts["/odom"] > 100
+    # the same command again: nothing to make; one more repeat: only that
+    again = ambiegen("rerun", *args, "--repeat", "2")
+    assert again.returncode == 0 and "0 runs to make (6 already in" in again.stdout, again.stdout[-2000:]
+    assert len(TrialLog(results).rows()) == 6
+    more = ambiegen("rerun", *args, "--repeat", "3")
+    assert more.returncode == 0, more.stderr[-2000:]
+    assert sorted(r["repeat"] for r in TrialLog(results).rows()) == [1] * 3 + [2] * 3 + [3] * 3
+
+
+def test_compare_runs_each_configuration_and_draws_what_changed(tmp_path, suite_file, ros_domain):
+    """Our ND robot with a laser all round and a wider berth (a world option and a driver option, one
+    file, as a Nav2 fix is): both configurations run, the tables and one picture per changed scenario."""
+    wide = tmp_path / "wide.yaml"
+    wide.write_text("nd_driver:\n  ros__parameters:\n    sim:\n      avoid_dist: 0.8\n"
+                    "robot_world:\n  ros__parameters:\n    sim:\n      fov_deg: 360.0\n      beams: 361\n")
+    results, out = tmp_path / "trials.jsonl", tmp_path / "reports"
+    run = ambiegen("compare", str(suite_file), "--stack", "nd", "--config", CONFIG, "--results", str(results),
+                   "--params", "nd=", "--params", f"wide={wide}", "--repeat", "1", "--out", str(out),
+                   "--domain-id", str(ros_domain))
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    rows = TrialLog(results).rows()
+    assert Counter(r["label"] for r in rows) == {"nd": 3, "wide": 3}
+    assert all(r["world"] == {"fov_deg": 360.0, "beams": 361} for r in rows if r["label"] == "wide")
+    assert all(r["world"] == {} for r in rows if r["label"] == "nd")
+    suite = load_suite([str(suite_file)], CONFIG)
+    assert [r["verdict"] for r in rows if r["label"] == "nd"] == [expected_verdicts(suite)[e.key]
+                                                                  for e in suite.entries]
+    changed = report.changed(suite, results, ["nd", "wide"])
+    pictures = sorted(out.glob("pictures_*/*.png"))
+    assert len(pictures) == len(changed)
+    text = next(out.glob("compare_*.md")).read_text()
+    assert "What each configuration does against `nd`" in text and "| `wide` |" in text

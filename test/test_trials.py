@@ -1,0 +1,225 @@
+"""Trials without a stack: suites, configurations, the results file and every table, on recorded rows.
+
+``ambiegen rerun`` and ``compare`` (``ambiegen_ros.trials``) answer a Nav2 engineer's three questions
+about a failure; the runs themselves are tested on our ND stack (``test/ros/test_trials_nd.py``).
+Here: the rows a run appends decide the tables, so the tables are checked on rows built by hand,
+where the right answer is known (k of N, fixed / kept / broken, Fisher's p, the cost, contact speeds).
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from scipy.stats import fisher_exact
+
+from ambiegen_ros.core.errors import BadInput
+from ambiegen_ros.sims.obstacles import person_contact_detail
+from ambiegen_ros.trials import configs, report, tables, trees
+from ambiegen_ros.trials.rows import TrialLog, counted
+from ambiegen_ros.trials.suite import load_suite, scenario_key
+
+REPO = Path(__file__).resolve().parents[1]
+CASES = json.loads((REPO / "test" / "data" / "robot_hazards_nd.json").read_text())
+CONFIG = str(REPO / CASES["config"])
+
+
+def row(label: str, key: str, kind: str = "none", repeat: int = 1, time_s: float = 60.0, recoveries: int = 0,
+        detail: str = "", known: str | None = None, digest: str = "d") -> dict:
+    failed = kind not in ("none", "invalid_test", "error", "sim_timeout")
+    return {"label": label, "key": key, "failure_kind": kind, "failed": failed, "repeat": repeat, "time_s": time_s,
+            "recoveries": recoveries, "detail": detail, "known_failure": known, "config_digest": digest}
+
+
+# --- tables ----------------------------------------------------------------------------------------
+def test_k_of_n_counts_the_stacks_runs_by_kind_and_leaves_our_errors_out():
+    rows = [row("jazzy", "a", "collision"), row("jazzy", "a", "collision", 2), row("jazzy", "a", "none", 3, recoveries=4),
+            row("jazzy", "a", "error", 4), row("jazzy", "b", "nav2_aborted", known="mppi_unmapped")]
+    md, data = tables.rerun_table(rows, "jazzy", {"a": "s4:6", "b": "s4:7"})
+    a = data["scenarios"]["s4:6"]
+    assert (a["runs"], a["failures"], a["errors"], a["status"]) == (3, 2, 1, "fails")
+    assert a["kinds"] == {"collision": 2, "near_miss": 1}
+    assert data["scenarios"]["s4:7"]["kinds"] == {"known:nav2_aborted": 1}  # known, and still Nav2's failure
+    line = next(line for line in md if line.startswith("| s4:6"))
+    assert "2 of 3: collision 2" in line and "| 1 (1) |" in line  # passed once, after recoveries
+    assert not counted(row("x", "a", "sim_timeout")) and counted(row("x", "a", "invalid_test"))
+
+
+def test_reproduction_uses_the_two_in_three_bar():
+    rows = [row("j", "a", "collision"), row("j", "a", "collision", 2), row("j", "a", "none", 3),
+            row("j", "b", "collision"), row("j", "b", "none", 2), row("j", "b", "none", 3),
+            row("j", "c", "none"), row("j", "c", "none", 2), row("j", "c", "none", 3)]
+    out = tables.reproduction(rows, "j", {"a": "a", "b": "b", "c": "c"})
+    assert out == {"scenarios_run": 3, "reproduce": 1, "ever_fail": 2, "never_fail": 1, "bar": pytest.approx(2 / 3)}
+
+
+def fix_rows() -> list[dict]:
+    """Baseline fails 'hit' 3 of 3 and passes 'easy' and 'wall'; the fix passes 'hit' 3 of 3, is slower
+    on 'easy' and breaks 'wall' once."""
+    rows = []
+    for r in (1, 2, 3):
+        rows += [row("jazzy", "hit", "collision", r), row("fix", "hit", "none", r, time_s=80.0),
+                 row("jazzy", "easy", "none", r, time_s=50.0 + r), row("fix", "easy", "none", r, time_s=75.0 + r,
+                                                                        recoveries=r),
+                 row("jazzy", "wall", "none", r, time_s=40.0),
+                 row("fix", "wall", "nav2_aborted" if r == 1 else "none", r, time_s=44.0)]
+    return rows
+
+
+def test_compare_says_what_a_fix_fixes_keeps_and_breaks_with_fishers_test():
+    names = {"hit": "hit", "easy": "easy", "wall": "wall"}
+    md, data = tables.compare_tables(fix_rows(), ["jazzy", "fix"], names)
+    fix = data["configurations"]["fix"]
+    assert fix["fixed"] == ["hit"] and fix["kept"] == [] and fix["broken"] == ["wall"]
+    assert (fix["failures"], fix["runs"]) == (1, 9)
+    assert fix["p_pooled"] == pytest.approx(fisher_exact([[3, 6], [1, 8]])[1])
+    per = next(line for line in md if line.startswith("| hit"))
+    assert "3 of 3: collision 3" in per and "0 of 3" in per
+    assert per.endswith(f"| {fisher_exact([[3, 0], [0, 3]])[1]:.2g} |")  # 0.1: three runs a side cannot do better
+
+
+def test_the_cost_of_a_fix_is_measured_where_the_baseline_passes():
+    _, data = tables.compare_tables(fix_rows(), ["jazzy", "fix"], {"hit": "hit", "easy": "easy", "wall": "wall"})
+    cost = data["cost"]
+    assert cost["jazzy"]["scenarios"] == 2 and cost["jazzy"]["time_median_s"] == pytest.approx(45.5)
+    fix = cost["fix"]
+    assert (fix["failures"], fix["runs"], fix["scenarios_broken"]) == (1, 6, 1)
+    assert fix["recoveries_median"] == pytest.approx(1.0)  # 0, 0 on 'wall', 1, 2, 3 on 'easy'
+    assert fix["time_vs_baseline_median"] == pytest.approx(((77 / 52) + (44 / 40)) / 2)  # medians per scenario
+
+
+def test_contacts_report_both_speeds_and_what_a_threshold_would_drop():
+    detail = "collision at (1.00, 2.00) (reported on /collision: '{}')"
+    rows = [row("j", "a", "collision", detail=detail.format(person_contact_detail(0, (1, 2), 0.08, 0.07, 1.1))),
+            row("j", "a", "collision", 2, detail=detail.format(person_contact_detail(0, (1, 2), 0.31, 0.3, -0.2))),
+            row("j", "b", "collision", detail="collision at (3.00, 3.00) (reported on /collision: 'touching a wall')")]
+    md, data = tables.contact_table(rows, {"a": "a", "b": "b"})
+    assert data["collisions_with_people"] == 2  # the wall is not a contact with a person
+    assert data["dropped_by_threshold"] == {"0.05": 0, "0.1": 1, "0.2": 1}
+    assert data["speeds"][0]["person_along_mps"] == pytest.approx(1.1)
+    assert any("0.1 m/s drops 1" in line for line in md)
+
+
+# --- suites -----------------------------------------------------------------------------------------
+def test_a_suite_file_names_its_scenarios_and_its_problem_settings(tmp_path):
+    suite_file = tmp_path / "people_suite.json"
+    cases = CASES["cases"][:2]
+    suite_file.write_text(json.dumps({"problem_config": {"profile": "refined", "scenario": "hazards", "goal": [14, 14],
+                                                         "start_area": [[1, 1], [4, 4]], "max_hazards": 6,
+                                                         "route_cap": 100.0},
+                                      "suite": [{"scenario": c["scenario"]} for c in cases] + [cases[0]["scenario"]]}))
+    suite = load_suite([str(suite_file)])
+    assert [e.name for e in suite.entries] == ["people:0", "people:1"] and suite.duplicates == 1
+    assert suite.problem_config["scenario"] == "hazards"
+    given = load_suite([str(suite_file)], CONFIG)  # --config gives the same settings: the same keys
+    assert [e.key for e in given.entries] == [e.key for e in suite.entries]
+    assert suite.entries[0].key == scenario_key(suite.entries[0].scenario, suite.problem_config)
+
+
+def test_a_bad_suite_is_one_line_naming_the_entry(tmp_path):
+    bad = tmp_path / "bad.json"
+    broken = json.loads(json.dumps(CASES["cases"][0]["scenario"]))
+    broken["elements"][0]["type"] = "teleporter"
+    bad.write_text(json.dumps({"suite": [{"scenario": CASES["cases"][1]["scenario"]}, {"scenario": broken}]}))
+    with pytest.raises(BadInput, match=r"bad.json: scenario bad:1: "):
+        load_suite([str(bad)], CONFIG)
+    with pytest.raises(BadInput, match="no such file"):
+        load_suite([str(tmp_path / "none.json")])
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    a.write_text(json.dumps({"problem_config": {"scenario": "hazards"}, "suite": [CASES["cases"][0]["scenario"]]}))
+    b.write_text(json.dumps({"problem_config": {}, "suite": [CASES["cases"][1]["scenario"]]}))
+    with pytest.raises(BadInput, match="different problem settings"):
+        load_suite([str(a), str(b)])
+
+
+# --- configurations -----------------------------------------------------------------------------------
+def test_a_fix_has_the_last_word_and_the_world_part_is_recorded(tmp_path):
+    base = tmp_path / "nav2.yaml"
+    base.write_text("controller_server:\n  ros__parameters:\n    controller_plugins: [FollowPath]\n    FollowPath:\n"
+                    "      vx_min: -0.35\n      vx_max: 0.5\n")
+    fix = tmp_path / "fix.yaml"
+    fix.write_text("controller_server:\n  ros__parameters:\n    FollowPath:\n      vx_min: 0.0\n"
+                   "robot_world:\n  ros__parameters:\n    sim:\n      fov_deg: 360.0\n")
+    config = configs.parse_config(f"{base}+{fix}")
+    assert config.label == "nav2+fix"
+    ready = configs.prepare(config, "bringup", None, 1.0, tmp_path / "out")
+    assert ready.params["controller_server"]["ros__parameters"]["FollowPath"] == {"vx_min": 0.0, "vx_max": 0.5}
+    assert ready.world == {"fov_deg": 360.0} and ready.speed == 0.5
+    again = configs.prepare(config, "bringup", None, 1.0, tmp_path / "out")
+    assert again.digest == ready.digest and again.path == ready.path  # written once per content
+    with pytest.raises(BadInput, match="no such fix"):
+        configs.resolve("fix:teleport")
+    assert configs.resolve("fix:people_approach").parent == configs.fixes_dir()
+    with pytest.raises(BadInput, match="needs a params file"):
+        configs.prepare(configs.StackConfig("x", ()), "bringup", None, 1.0, tmp_path)
+
+
+def test_a_tree_fix_changes_only_what_it_says(tmp_path):
+    tree = tmp_path / "default.xml"
+    tree.write_text('<root BTCPP_format="4"><BehaviorTree ID="MainTree"><RecoveryNode number_of_retries="6" '
+                    'name="NavigateRecovery"><FollowPath/><RoundRobin><Wait/><BackUp/></RoundRobin></RecoveryNode>'
+                    '</BehaviorTree></root>')
+    text, source = trees.derive([({"from": "default.xml", "remove": ["BackUp"],
+                                   "set": {"NavigateRecovery.number_of_retries": 1000},
+                                   "wrap": {"Timeout": {"msec": 180000}}}, tmp_path)])
+    assert source == str(tree)
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(text.split("-->", 1)[1])
+    timeout = root.find("BehaviorTree/Timeout")
+    assert timeout is not None and timeout.get("msec") == "180000"
+    assert timeout.find("RecoveryNode").get("number_of_retries") == "1000"
+    assert root.find(".//BackUp") is None and root.find(".//Wait") is not None
+    with pytest.raises(BadInput, match="no Spin node"):
+        trees.derive([({"from": "default.xml", "remove": ["Spin"]}, tmp_path)])
+    with pytest.raises(BadInput, match="no tree"):
+        trees.derive([({"from": "missing.xml"}, tmp_path)])
+
+
+# --- the results file -----------------------------------------------------------------------------------
+def test_the_results_file_only_grows_and_a_line_cut_short_stays(tmp_path):
+    log = TrialLog(tmp_path / "r.jsonl")
+    log.append(row("j", "a", "collision", digest="d1"))
+    with open(log.path, "a") as fh:
+        fh.write('{"label": "j", "key": "a", "fail')  # a crash in the middle of a row
+    log.append(row("j", "a", "error", 2, digest="d1"))
+    log.append(row("j", "a", "none", 2, digest="d1"))
+    assert log.done("j") == {"a": 2} and log.skipped == 1
+    assert log.path.read_text().count("\n") == 4  # nothing rewritten: the cut line is still there
+    with pytest.raises(BadInput, match="was run with other params"):
+        log.check_label("j", "d2")
+    log.check_label("j", "d1")
+
+
+def test_pictures_are_drawn_for_the_scenarios_whose_verdict_changed(tmp_path):
+    suite_file = tmp_path / "s.json"
+    suite_file.write_text(json.dumps({"suite": [c["scenario"] for c in CASES["cases"][:2]]}))
+    suite = load_suite([str(suite_file)], CONFIG)
+    a, b = (e.key for e in suite.entries)
+    traj = [[2.0, 2.0], [5.0, 5.0], [9.0, 9.0]]
+    rows = []
+    for r in (1, 2):
+        rows += [dict(row("jazzy", a, "collision", r), trajectory_every_10=traj, failure_point=[9.0, 9.0]),
+                 dict(row("fix", a, "none", r), trajectory_every_10=traj),
+                 dict(row("jazzy", b, "none", r), trajectory_every_10=traj),
+                 dict(row("fix", b, "none", r), trajectory_every_10=traj)]
+    results = tmp_path / "r.jsonl"
+    log = TrialLog(results)
+    for r in rows:
+        log.append(r)
+    assert report.changed(suite, results, ["jazzy", "fix"]) == [a]
+    written = report.write(suite, results, ["jazzy", "fix"], tmp_path / "out", "T1", "compare")
+    assert len(written["pictures"]) == 1 and Path(written["pictures"][0]).stat().st_size > 10_000
+    assert "| s:0 | 2 of 2: collision 2 | 0 of 2 |" in Path(written["md"]).read_text()
+    with pytest.raises(FileExistsError):
+        report.write(suite, results, ["jazzy", "fix"], tmp_path / "out", "T1", "compare")  # never over a report
+
+
+def test_the_runner_starts_each_node_script_as_the_console_script_does():
+    """``campaign.node_argv`` runs an executable of ours as ``python -m <module>``; the module is the
+    one ``entry.SCRIPTS`` gives the console script (and ``ros2 run``)."""
+    from ambiegen_ros.campaign import node_module
+    from ambiegen_ros.entry import SCRIPTS
+
+    assert {name: node_module(name) for name in SCRIPTS if name != "ambiegen"} == \
+        {name: module for name, module in SCRIPTS.items() if name != "ambiegen"}
