@@ -172,6 +172,7 @@ class ProcessGroup:
             if proc is None or proc.poll() is not None:
                 continue
             _signal_group(proc, signal.SIGINT)
+            _signal_group(proc, signal.SIGCONT)  # a stopped process takes its SIGINT only once it runs
             try:
                 proc.wait(timeout=timeout)
             except subprocess.TimeoutExpired:

@@ -164,6 +164,7 @@ class Job:
     nav2_resend_wait_s: float | None = None  # ROS-clock s from that refusal to the goal's going again
     contacts_not_at_fault: int = 0  # people who walked into the robot (the world's WARNs): recorded, not failures
     before: Any = None  # the reference's static check (passed), the word on a failure without a reference run
+    grace_until: float | None = None  # monotonic: Nav2 failed; a crash reported by then explains it
 
     @property
     def nav2_resend_due(self) -> bool:
@@ -215,6 +216,13 @@ class SutAdapter:
         nav2_clear = p("nav2_clear_costmaps", "/global_costmap/clear_entirely_global_costmap,"
                                               "/local_costmap/clear_entirely_local_costmap",
                        "goal_mode action: costmap clearing services called with every new map ('' = none)")
+        self.events_topic = p("stack_events_topic", topics.STACK_EVENTS,
+                              "diagnostic_msgs/DiagnosticArray in: what happened to the run's processes, from "
+                              "whoever started them (ambiegen rerun); during a run, one of the stack's = "
+                              "FAIL(sut_crashed), one of ours = an error record ('' = none)")
+        self.crash_grace = float(p("crash_grace", 2.0, "wall seconds a failure of the stack's own (Nav2 aborted) "
+                                                       "waits for a crash report that explains it, when someone "
+                                                       "publishes them (0 = no wait)"))
         self.start_tolerance = float(p("start_tolerance", 0.5, "robot: a run starts with the first pose sample this "
                                                                 "close to the start pose [m]; earlier ones (a world "
                                                                 "still showing the last run) are ignored"))
@@ -295,6 +303,8 @@ class SutAdapter:
                               if self.topics["initial_temperature"] else None)
             n.create_subscription("sensor_msgs/msg/Temperature", self.topics["temperature"], self.on_temperature,
                                   sample_qos)
+        if self.events_topic:
+            n.create_subscription(topics.STACK_EVENTS_TYPE, self.events_topic, self.on_stack_event, STREAM)
         self.queue: deque[Job] = deque()
         self.job: Job | None = None
         self.samples: list[tuple] = []
@@ -486,6 +496,34 @@ class SutAdapter:
             stamp, problem = conversions.status_problem(msg)
             self.order.message(name, time.monotonic_ns() if self.stamp_clock == "receive" else stamp, problem)
 
+    def on_stack_event(self, msg: Any) -> None:
+        """A process of the run died or hung: the scenario running now ends. The stack's during the run:
+        FAIL(sut_crashed), certified as any failure; ours, or the stack's before the run began: an error
+        record (not the stack's failure: whoever restarts the part runs the scenario again)."""
+        for process, part, what in conversions.stack_events_of(msg):
+            job = self.job
+            self.node.logger.warning(f"{process} ({part}) {what}" + (f" during scenario {job.scenario_id}" if job else ""))
+            if job is None or job.phase == "queued":
+                continue
+            if part == "stack" and job.judge is not None and job.phase in ("waiting", "running"):
+                job.judge.fail("sut_crashed", f"the stack crashed: {process} {what}, "
+                                              f"{job.judge.elapsed:.1f} s into the run")
+                outcome = job.judge.outcome()  # no objective before the route is known (a crash at once)
+                outcome.objectives = {k: v for k, v in outcome.objectives.items() if math.isfinite(v)}
+                self.finish(outcome)
+            else:
+                whose = "ours, not the stack's failure" if part == "ours" else "before the run began"
+                self.finish(Outcome.rejected(f"{process} {what} ({whose}): run it again", kind="error"))
+
+    def _crash_grace(self, job: Job, now: float) -> bool:
+        """Hold Nav2's failure a moment when someone reports the run's processes: a server killed
+        mid-run makes Nav2 abort before the report of the kill arrives."""
+        if self.crash_grace <= 0 or not self.events_topic or not self.node.publishers_info(self.events_topic):
+            return False
+        if job.grace_until is None:
+            job.grace_until = now + self.crash_grace
+        return now < job.grace_until
+
     def on_plan(self, msg: Any) -> None:
         if self.job is not None and self.job.phase in ("waiting", "running"):
             self.plans, self.last_plan = self.plans + 1, msg  # measured once, when the run ends
@@ -547,6 +585,8 @@ class SutAdapter:
             job.nav2_refused_ns = self.node.now_ns()
             self.node.logger.warning(f"Nav2 {job.nav2_first_abort} at the start; sending the goal once more "
                                      f"when the world's clock has run {NAV2_NOT_READY_S:g} s")
+            return
+        if r is not None and r["status"] != "succeeded" and self._crash_grace(job, now):
             return
         if r is not None and (r["status"] != "succeeded" or not self.early_verdicts):
             # Nav2's result carries no stamp: it counts at the newest pose received before it, once

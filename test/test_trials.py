@@ -223,3 +223,57 @@ def test_the_runner_starts_each_node_script_as_the_console_script_does():
 
     assert {name: node_module(name) for name in SCRIPTS if name != "ambiegen"} == \
         {name: module for name, module in SCRIPTS.items() if name != "ambiegen"}
+
+
+def test_deaths_are_named_with_their_signal_and_whose_they_are(tmp_path):
+    """How a session names what died: a killed child by its signal, a Nav2 server from the launch's
+    own line, a stopped one as hung; each once."""
+    import signal
+    import sys
+    import time
+
+    from ambiegen_ros.campaign import ProcessGroup
+    from ambiegen_ros.trials.supervise import Watch, exit_words, part_of
+
+    assert exit_words(-9) == "killed by SIGKILL" and exit_words(139) == "killed by SIGSEGV"
+    assert exit_words(1) == "exited with code 1" and exit_words(0) == "exited with code 0"
+    assert part_of("robot_world") == "ours" and part_of("controller_server") == "stack"
+    group = ProcessGroup(tmp_path, dict())
+    sleeper = [sys.executable, "-c", "import time; time.sleep(60)"]
+    group.start_argv("nd_driver", sleeper)
+    group.start_argv("robot_world", sleeper)
+    group.start_argv("nav2", sleeper)  # stands in for `ros2 launch`: what counts is its log's lines
+    watch = Watch(group)
+    try:
+        assert watch.poll() == []
+        group.procs["nd_driver"].send_signal(signal.SIGKILL)
+        group.procs["nd_driver"].wait()
+        (tmp_path / "nav2.log").write_text(
+            "[INFO] [launch]: ...\n[ERROR] [controller_server-3]: process has died [pid 4242, exit code -11, "
+            "cmd '/opt/ros/jazzy/lib/nav2_controller/controller_server --ros-args ...'].\n")
+        group.procs["robot_world"].send_signal(signal.SIGSTOP)
+        found: set = set()
+        deadline = time.monotonic() + 30
+        while len(found) < 3 and time.monotonic() < deadline:  # until the kernel shows it stopped
+            found |= {(d.process, d.part, d.what) for d in watch.poll()}
+            time.sleep(0.05)
+        assert found == {("nd_driver", "stack", "killed by SIGKILL"), ("controller_server", "stack", "killed by SIGSEGV"),
+                         ("robot_world", "ours", "stopped (hung: SIGSTOP)")}
+        assert watch.poll() == []  # each once
+        group.procs["robot_world"].send_signal(signal.SIGCONT)
+    finally:
+        group.stop(timeout=5)
+        for proc in group.procs.values():
+            proc.kill() if proc.poll() is None else None
+
+
+def test_a_fault_is_written_as_target_signal_and_run():
+    from ambiegen_ros.trials.faults import parse_fault
+
+    fault = parse_fault("controller_server:SIGSTOP@3+2.5/30")
+    assert (fault.target, fault.signal.name, fault.run, fault.after_s, fault.hold_s) == \
+        ("controller_server", "SIGSTOP", 3, 2.5, 30.0)
+    assert fault.spec() == "controller_server:SIGSTOP@3+2.5/30"
+    for bad in ("nd_driver", "nd_driver:KILL@1", "nd_driver:SIGNOPE@1", "nd_driver:SIGKILL@0"):
+        with pytest.raises(BadInput, match="--inject"):
+            parse_fault(bad)

@@ -57,6 +57,14 @@ def _common(p: argparse.ArgumentParser, many: bool) -> None:
     p.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID of the stack and this command (default: inherited)")
     p.add_argument("--start-timeout", type=float, default=120.0, help="seconds the adapter waits for the stack "
                    "(default 120; external: 600)")
+    p.add_argument("--hang-after", type=float, default=30.0, metavar="SECONDS", help="a stack that sends no /cmd_vel "
+                   "for this long while a run is on has hung: FAIL(sut_crashed), and it is restarted (0: not watched; "
+                   "default 30)")
+    p.add_argument("--inject", action="append", default=[], metavar="TARGET:SIGNAL@RUN[+S][/HOLD]",
+                   help="a fault on purpose, to see the runs survive it: e.g. nd_driver:SIGKILL@2 kills nd_driver when "
+                        "this invocation's 2nd run has its robot moving (+S: S seconds later; /HOLD: SIGCONT a "
+                        "SIGSTOP after HOLD s); TARGET: robot_world, sut_adapter, recorder, nd_driver, nav2 or a Nav2 "
+                        "server's node name")
     p.add_argument("--no-run", action="store_true", help="run nothing: the tables of what --results holds")
 
 
@@ -84,6 +92,7 @@ def register(sub) -> None:
 def _settings(args, results: Path):
     from ..nav2_params import package_file
     from ..trials.configs import NAV2_STACKS
+    from ..trials.faults import parse_fault
     from ..trials.runner import TrialSettings
 
     nav2 = args.stack in NAV2_STACKS
@@ -96,7 +105,8 @@ def _settings(args, results: Path):
     return TrialSettings(stack=args.stack, results=results, bags=bags, repeat=args.repeat, time_scale=args.time_scale,
                          seed=args.seed, domain_id=args.domain_id, known_failures=str(known) if known else None,
                          fault_speed=args.fault_speed, early_verdicts=args.early_verdicts,
-                         start_timeout=args.start_timeout)
+                         start_timeout=args.start_timeout, hang_after=args.hang_after,
+                         faults=[parse_fault(spec) for spec in args.inject])
 
 
 def _overlay(args) -> str | None:

@@ -5,7 +5,9 @@ summary), so ``ros2 bag info/play`` and Foxglove open it. The run's config, seed
 stored as MCAP metadata when the latched ``RunConfig`` arrives. The log is flushed every
 ``flush_period`` seconds and finalised on SIGINT/SIGTERM, once what was still on its way has
 been taken (until nothing came for 0.5 s, 3 s at most; ``Node.finish_io``); after a SIGKILL,
-``ambiegen recover FILE.mcap`` rebuilds a valid file with everything up to the last flush.
+``ambiegen recover FILE.mcap`` rebuilds a valid file with everything up to the last flush. A file
+that can take no more (the disk is full) stops the recorder with one line saying so and exit
+status 3; the log keeps everything up to the last flush.
 
 Parameters: ``output`` (file path; default ``ambiegen_<random>_<utc time>.mcap``; the launch file
 and ``ambiegen campaign`` name it ``<run id>_<utc time>.mcap``), ``overwrite`` (false: an existing
@@ -42,6 +44,7 @@ READER_DEPTH = 5000
 # and 2000 (Cyclone: all 300 at 5000). So on Fast DDS the recorder's readers are 2000 deep.
 FAST_DDS_READER_DEPTH = 2000
 TIMELINE_TOPICS = frozenset(topics.timeline(p) for p in topics.TIMELINE_TYPES)
+CANNOT_WRITE = 3  # exit status: the disk is full (or the file may not grow): the log is kept up to the last flush
 
 
 def offered_qos(offered: list) -> Qos:
@@ -78,6 +81,8 @@ class Recorder:
         self.log.add_metadata("ambiegen_recorder", {"version": __version__, "started": stamp,
                                                      "middleware": n.middleware})
         self._config_seen = False
+        self.cannot_write: OSError | None = None  # set once the file takes no more (the recorder stops)
+        self.flushed_at: datetime | None = None
         for topic, typename, qos in topics.run_topics():
             self.record(topic, typename, qos)
         self.pending: dict[str, str] = {}  # extra topics not subscribed yet -> type ('' = the publisher's)
@@ -100,7 +105,13 @@ class Recorder:
         is_config = topic == topics.RUN_CONFIG
 
         def on_bytes(data: bytes, receive_ns: int) -> None:
-            self.log.write(channel, data, receive_ns)
+            if self.cannot_write is not None:
+                return
+            try:
+                self.log.write(channel, data, receive_ns)
+            except OSError as exc:  # the disk is full (or the file may grow no more): stop, keep what is written
+                self.stop_writing(exc)
+                return
             if is_config:
                 self.store_run_config(data)
 
@@ -140,12 +151,34 @@ class Recorder:
             self.record(topic, typename, offered_qos(offered))
 
     def flush(self) -> None:
-        self.log.flush()
+        if self.cannot_write is not None:
+            return
+        try:
+            self.log.flush()
+            self.flushed_at = datetime.now(timezone.utc)
+        except OSError as exc:
+            self.stop_writing(exc)
 
-    def close(self) -> None:
+    def stop_writing(self, exc: OSError) -> None:
+        """The file can take no more (disk full, a size limit): one clear line, and the node stops; the
+        log holds everything up to the last flush (``ambiegen recover`` makes it whole)."""
+        self.cannot_write = exc
+        when = self.flushed_at.strftime("%H:%M:%S UTC") if self.flushed_at else "its start"
+        self.node.logger.error(f"cannot write {self.path}: {exc.strerror or exc} (disk full?); recording stopped. "
+                               f"The log is readable up to {when}: ambiegen recover {self.path}")
+        self.node.request_shutdown()
+
+    def close(self) -> int:
+        if self.cannot_write is not None:
+            try:
+                self.log.close()
+            except (OSError, ValueError):
+                pass  # no room for the summary: the chunks flushed before are what recover reads
+            return CANNOT_WRITE
         self.log.close()
         counts = self.log.counts()
         self.node.logger.info(f"closed {self.path}: {sum(counts.values())} messages")
+        return 0
 
 
 def main(argv: list[str] | None = None) -> int:

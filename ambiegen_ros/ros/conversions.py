@@ -137,6 +137,7 @@ def velocity_command(msg: Any) -> tuple[float, float]:
 
 
 STATUS_OK, STATUS_WARN, STATUS_ERROR = 0, 1, 2  # diagnostic_msgs/DiagnosticStatus levels
+STATUS_TEXT_LIMIT = 240  # characters of a status's reason kept (a sentence with its numbers: a contact's speeds)
 
 
 def status_report(make: Make, now_ns: int, name: str, problem: str = "", frame_id: str = "", note: str = "") -> Any:
@@ -149,6 +150,37 @@ def status_report(make: Make, now_ns: int, name: str, problem: str = "", frame_i
     status = make("diagnostic_msgs/msg/DiagnosticStatus", level=level, name=name,
                   message=problem or note, hardware_id="")
     return make("diagnostic_msgs/msg/DiagnosticArray", header=header(make, now_ns, frame_id), status=[status])
+
+
+PARTS = ("stack", "ours")  # whose process an event is about: the system under test's, or ours
+
+
+def stack_event(make: Make, now_ns: int, process: str, part: str, what: str) -> Any:
+    """An event of a run's processes (``topics.STACK_EVENTS``): ``process`` (e.g. controller_server)
+    of ``part`` (stack | ours) ``what`` (killed by SIGKILL, hung: no /cmd_vel for 30 s)."""
+    if part not in PARTS:
+        raise ValueError(f"part: {part!r} is not one of {PARTS}")
+    status = make("diagnostic_msgs/msg/DiagnosticStatus", level=STATUS_ERROR, name=plain_text(process),
+                  message=plain_text(what, STATUS_TEXT_LIMIT), hardware_id=part)
+    return make("diagnostic_msgs/msg/DiagnosticArray", header=header(make, now_ns, ""), status=[status])
+
+
+def plain_text(text: Any, limit: int = 80) -> str:
+    """A received string made safe to echo in words: printable characters only, clipped."""
+    text = "".join(c if c.isprintable() else "?" for c in str(text))
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
+
+
+def stack_events_of(msg: Any) -> list[tuple[str, str, str]]:
+    """(process, part, what) of each ERROR status of a stack event message (unknown parts: stack)."""
+    out = []
+    for status in msg.status:
+        level = status.level[0] if isinstance(status.level, (bytes, bytearray)) else int(status.level)
+        if level == STATUS_ERROR:
+            part = str(status.hardware_id) if str(status.hardware_id) in PARTS else "stack"
+            out.append((plain_text(status.name) or "a process", part,
+                        plain_text(status.message, STATUS_TEXT_LIMIT) or "died"))
+    return out
 
 
 # --- a hosted world's unmapped obstacles and people (issue 48) -----------------------------------
@@ -196,9 +228,6 @@ def obstacle_markers(make: Make, now_ns: int, obstacles: Any, t: float, frame_id
         marker("people_paths", k, MARKER_LINE_STRIP, 0.0, 0.0, 0.03, 0.0, 0.0, (0.5, 0.2, 0.7, 0.5),
                points=np.asarray(person.path, dtype=float))
     return make("visualization_msgs/msg/MarkerArray", markers=markers)
-
-
-STATUS_TEXT_LIMIT = 240  # characters of a status's reason kept (a sentence with its numbers: a contact's speeds)
 
 
 def status_note(msg: Any) -> str | None:

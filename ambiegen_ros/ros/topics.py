@@ -25,6 +25,13 @@ RESULTS = f"{NAMESPACE}/results"
 WORLD_OBSTACLES = f"{NAMESPACE}/world/obstacles"
 WORLD_MARKERS = f"{NAMESPACE}/world/markers"
 
+# what happened to the processes of a run, from whoever started them (``ambiegen rerun``): a
+# stamped status per event, ERROR, name = the process, message = what (killed by SIGKILL, hung),
+# hardware_id = "stack" (the system under test's) or "ours" (world, adapter, recorder). The adapter
+# turns one during a run into FAIL(sut_crashed) or an error record; the recorder logs them all.
+STACK_EVENTS = f"{NAMESPACE}/stack_events"
+STACK_EVENTS_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
+
 RUN_CONFIG_TYPE = "ambiegen_msgs/msg/RunConfig"
 STATUS_TYPE = "ambiegen_msgs/msg/RunStatus"
 WORKERS_TYPE = "diagnostic_msgs/msg/DiagnosticStatus"
@@ -68,6 +75,7 @@ def run_topics() -> list[tuple[str, str, Qos]]:
         (STATUS, STATUS_TYPE, DEFAULT),
         (WORKERS, WORKERS_TYPE, DEFAULT),
         (RESULTS, RESULT_TYPE, STREAM),
+        (STACK_EVENTS, STACK_EVENTS_TYPE, STREAM),
     ]
     topics += [(scenarios(p), t, STREAM) for p, t in SCENARIO_TYPES.items()]
     topics += [(not_sent(p), t, NOT_SENT_QOS) for p, t in SCENARIO_TYPES.items()]

@@ -20,10 +20,11 @@ FAILURE_KINDS = {
     "loiter": 9,
     "invalid_test": 10,
     "nav2_aborted": 11,
+    "sut_crashed": 12,
 }
 # Kinds that say the system under test failed (``Outcome.failed``); every other kind says nothing
 # about it: ``none`` passed, ``invalid_test`` is a scenario no reference passes (never a failure).
-SUT_FAILURES = ("collision", "stall", "timeout", "out_of_lane", "requirement", "loiter", "nav2_aborted")
+SUT_FAILURES = ("collision", "stall", "timeout", "out_of_lane", "requirement", "loiter", "nav2_aborted", "sut_crashed")
 FAILURE_NAMES = {code: name for name, code in FAILURE_KINDS.items()}
 NAV2_RECOVERIES = "nav2_recoveries"  # metric: recovery actions Nav2 ran for the goal (its action feedback's count)
 

@@ -1,22 +1,19 @@
-"""Running trials: per configuration, start the stack, send each scenario, append each row.
+"""Running trials: per configuration, a stack session, the missing runs, a row each.
 
-The stack is what a campaign starts (``launch_logic``: ``robot_world`` + Nav2 + ``sut_adapter``,
-or our ND stack), with the configuration's merged params file given to every node, and a
-recorder writing one bag per configuration and invocation (``<bags>/<label>_<UTC time>/``, with
-the nodes' logs and the params beside it). Scenarios go one at a time, each configuration's runs
-round-robin (every scenario once, then again), so a run cut short leaves balanced counts, and the
-next invocation runs only what is missing (``rows.TrialLog.done``).
-
-The runner publishes the scenarios and takes the results as the generator does, on the same
-topics, so the bag holds scenario, robot and verdict alike. A scenario that gets no answer in its
-time gets a ``sim_timeout`` result, published and logged: nothing sent is lost. After
-``max_errors`` errors of ours in a row (no answer, the adapter's error) the configuration stops
-with one line naming the logs.
+Each configuration gets a session (``session.StackSession``: its stack, watched and kept alive,
+and a bag of its own under ``<bags>/<label>_<UTC time>/`` with the nodes' logs and the params).
+Scenarios go one at a time, each configuration's runs round-robin (every scenario once, then
+again), so a run cut short leaves balanced counts, and the next invocation runs only what is
+missing (``rows.TrialLog.done``). A run during which a process of the stack died or hung is
+FAIL(sut_crashed) (the adapter's verdict, certified), and the same scenario runs once more on the
+fresh stack the session started: the row says whether the crash came back. A run during which a
+part of ours died is an error record, and runs again once the part is back. Every row and every
+restart is said as it happens. After ``max_errors`` errors of ours in a row, or a stack that does
+not come back, the configuration stops with one line naming the logs.
 """
 from __future__ import annotations
 
 import math
-import os
 import sys
 import time
 from dataclasses import dataclass, field
@@ -24,15 +21,11 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable
 
-from .configs import NAV2_STACKS, Prepared
+from .configs import Prepared
+from .faults import Fault, Injector
 from .rows import TrialLog, counted
-from .suite import Entry, Suite, problem_of
-
-RESULT_SLACK_S = 60.0  # beyond the adapter's own guard, before the runner calls a scenario lost
-
-
-class StackStopped(Exception):
-    """The runs of a configuration stopped: the stack did not come up, or kept failing to answer."""
+from .session import StackSession, StackStopped
+from .suite import Entry, Suite
 
 
 @dataclass
@@ -49,8 +42,10 @@ class TrialSettings:
     early_verdicts: bool = False
     map_upsample: int = 5
     start_timeout: float = 120.0  # s the adapter waits for the stack (external: for you to start it)
-    ready_timeout: float = 300.0  # s for the stack's nodes to come up
+    ready_timeout: float = 300.0  # s for the stack's nodes to come up (and back, after a restart)
+    hang_after: float = 30.0  # s without /cmd_vel while a run is on: the stack hung (0: not watched)
     max_errors: int = 3
+    faults: list[Fault] = field(default_factory=list)  # injected on purpose (``faults``)
     extra_env: dict[str, str] = field(default_factory=dict)
 
 
@@ -67,7 +62,7 @@ def _number(value: Any) -> float | None:
 
 
 def row_of(outcome: Any, entry: Entry, suite: Suite, prepared: Prepared, settings: TrialSettings, repeat: int,
-           run_id: str, sid: int, bag: Path, wall: float, started_ns: int) -> dict:
+           run_id: str, sid: int, bag: Path, wall: float, started_ns: int, extra: dict | None = None) -> dict:
     """One run as a row of the results file (see ``rows``)."""
     import numpy as np
 
@@ -94,178 +89,8 @@ def row_of(outcome: Any, entry: Entry, suite: Suite, prepared: Prepared, setting
         "wall_s": round(wall, 2), "run_id": run_id, "scenario_id": sid, "bag": str(bag),
         "wall_start_ns": started_ns, "wall_end_ns": time.time_ns(),
         "when": datetime.now(timezone.utc).isoformat(timespec="seconds"), "versions": versions(),
-        "command": sys.argv,
+        "command": sys.argv, **(extra or {}),
     }
-
-
-class SuiteDriver:
-    """Publishes scenarios as the generator does and takes every result; answers a lost one with a
-    published ``sim_timeout`` result, so the log accounts for every scenario it sent."""
-
-    def __init__(self, node: Any, problem: Any):
-        from ..ros import conversions, topics
-        from ..ros.qos import LATCHED, STREAM
-
-        self.node, self.problem, self.conv, self.topics = node, problem, conversions, topics
-        self.pub = node.create_publisher(topics.SCENARIO_TYPES[problem.name], topics.scenarios(problem.name), STREAM)
-        self.pub_results = node.create_publisher(topics.RESULT_TYPE, topics.RESULTS, STREAM)
-        self.pub_config = node.create_publisher(topics.RUN_CONFIG_TYPE, topics.RUN_CONFIG, LATCHED)
-        self.results: dict[tuple[str, int], Any] = {}
-        self.workers: dict[tuple[str, int], str] = {}
-        node.create_subscription(topics.RESULT_TYPE, topics.RESULTS, self.on_result, STREAM)
-
-    def on_result(self, msg: Any) -> None:
-        key = (msg.run_id, int(msg.scenario_id))
-        self.results.setdefault(key, self.conv.outcome_from_message(msg))
-        self.workers.setdefault(key, msg.worker)
-
-    def announce(self, run_id: str, config: dict) -> None:
-        """The run's configuration on ``/ambiegen/run_config`` (latched): the bag says what ran."""
-        from .. import __version__
-
-        self.pub_config.publish(self.conv.run_config_message(self.node.new_message, self.node.now_ns(), run_id, config,
-                                                             __version__))
-
-    def wait_matched(self, count: int, timeout: float) -> bool:
-        return self.node.spin_until(lambda: self.pub.subscription_count() >= count, timeout)
-
-    def send(self, run_id: str, sid: int, scenario: Any, seed: int = 0) -> None:
-        meta = self.conv.ScenarioMeta(run_id, sid, seed=seed)
-        self.pub.publish(self.conv.scenario_message(self.node.new_message, self.node.now_ns(), self.problem, scenario,
-                                                    meta))
-
-    def wait(self, run_id: str, sid: int, timeout: float, stop: Callable[[], bool] = lambda: False) -> Any:
-        self.node.spin_until(lambda: (run_id, sid) in self.results or stop(), timeout)
-        return self.results.get((run_id, sid))
-
-    def lost(self, run_id: str, sid: int, detail: str) -> Any:
-        """Record a scenario that got no answer: a ``sim_timeout`` result, published (and so logged)."""
-        from ..sims.outcome import Outcome
-
-        outcome = Outcome.rejected(detail, kind="sim_timeout")
-        self.pub_results.publish(self.conv.result_message(self.node.new_message, self.node.now_ns(), run_id, sid,
-                                                          self.problem.name, "ambiegen_trials", outcome))
-        self.results[(run_id, sid)] = outcome
-        return outcome
-
-
-def stack_nodes(settings: TrialSettings, prepared: Prepared, problem_file: Path, bag: Path, tag: str) -> list:
-    """The node set of one configuration: recorder, world, stack, adapter (``launch_logic.NodeSpec``)."""
-    from ..campaign import STACK_TOPICS
-    from ..launch_logic import NAV2_TOPICS, NodeSpec, nav2_stack, nd_stack
-
-    files = [str(prepared.path)] if prepared.path else []
-    nav2 = settings.stack in NAV2_STACKS
-    recorder = NodeSpec("recorder", "recorder", {"output": str(bag),
-                                                 "extra_topics": ",".join(NAV2_TOPICS if nav2 else STACK_TOPICS)})
-    if nav2:
-        start = 600.0 if settings.stack == "external" else settings.start_timeout
-        nodes = nav2_stack("", settings.stack, prepared.params, prepared.path, settings.seed, tag, settings.time_scale,
-                           settings.map_upsample, start, settings.early_verdicts, prepared.speed, str(problem_file), "")
-        if settings.known_failures:
-            nodes[-1].parameters["known_failures"] = settings.known_failures
-    else:
-        nodes = nd_stack(settings.seed, tag, None, str(problem_file))
-    for node in nodes:
-        if node.package == "ambiegen_ros":
-            node.params_files = files + [f for f in node.params_files if f not in files]
-        if node.executable == "robot_world" and settings.fault_speed is not None:
-            node.parameters["sim.contact_fault_speed"] = settings.fault_speed
-        if node.executable == "sut_adapter":
-            node.parameters["min_result_subscribers"] = 2  # the runner and the recorder
-            if settings.fault_speed is not None:
-                node.parameters["oracle.contact_fault_speed"] = settings.fault_speed
-    return [recorder, *nodes]
-
-
-class StackSession:
-    """One configuration's processes and the in-process driver, for as long as its runs last."""
-
-    def __init__(self, settings: TrialSettings, suite: Suite, prepared: Prepared, say: Callable[[str], None]):
-        import yaml
-
-        from ..campaign import ProcessGroup, discovery_scope, node_argv
-        from ..ros.transport import create_node
-
-        self.settings, self.suite, self.prepared, self.say = settings, suite, prepared, say
-        self.dir = Path(settings.bags) / f"{prepared.config.label}_{utc_stamp()}"
-        self.dir.mkdir(parents=True, exist_ok=False)
-        self.bag = self.dir / "trials.mcap"
-        problem_file = self.dir / "problem.yaml"
-        problem_file.write_text(yaml.safe_dump({"problem": suite.problem, "problem_config": suite.problem_config}))
-        self.run_id = f"trials-{prepared.config.label}-{self.dir.name[-16:]}"
-        env = dict(os.environ, PYTHONUNBUFFERED="1", **settings.extra_env)
-        if settings.domain_id is not None:
-            env["ROS_DOMAIN_ID"] = str(settings.domain_id)
-        env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = discovery_scope(None, env)
-        self.env = env
-        self.group = ProcessGroup(self.dir / "logs", env)
-        for node in stack_nodes(settings, prepared, problem_file, self.bag, self.run_id[-6:]):
-            self.group.start_argv(node.name, node_argv(node))
-        if settings.stack == "bringup":
-            self.group.start_argv("nav2", ["ros2", "launch", "nav2_bringup", "navigation_launch.py", "use_sim_time:=true",
-                                           "autostart:=true", "use_composition:=False",
-                                           f"params_file:={prepared.path}"])
-        elif settings.stack == "external":
-            say(f"start your Nav2 now, in ROS domain {env.get('ROS_DOMAIN_ID', '0')}: ros2 launch nav2_bringup "
-                f"navigation_launch.py use_sim_time:=true params_file:={prepared.path}")
-        for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE"):  # the driver joins the same graph
-            if key in env:
-                os.environ[key] = env[key]
-        self.node = create_node("ambiegen_trials", argv=[])
-        self.problem = problem_of(suite)
-        self.driver = SuiteDriver(self.node, self.problem)
-        self.driver.announce(self.run_id, {"trials": prepared.record(), "stack": settings.stack,
-                                           "problem": suite.problem, "problem_config": suite.problem_config,
-                                           "suite": suite.sources, "repeat": settings.repeat,
-                                           "seed": settings.seed, "time_scale": settings.time_scale,
-                                           "command": sys.argv})
-        self.sid = 0
-
-    def ready(self) -> bool:
-        """The adapter and the recorder take scenarios (a bound, not a wait: it ends once they match)."""
-        return self.driver.wait_matched(2, self.settings.ready_timeout)
-
-    def died(self) -> str | None:
-        """A node of ours or the stack's launch that has exited, named, else None."""
-        for name, proc in self.group.procs.items():
-            if proc.poll() is not None:
-                return f"{name} exited with {proc.returncode} (log: {self.dir / 'logs' / (name + '.log')})"
-        return None
-
-    def limit(self, entry: Entry) -> float:
-        """Wall seconds the runner waits for an answer: twice the oracle's time limit for the route at
-        the stack's speed, over the time scale, plus the adapter's start and our slack."""
-        from ..sims.robot import RobotSimConfig
-
-        scenario = self.problem.parse(entry.scenario)
-        route = float(self.problem.evaluate_scenarios([scenario]).metrics["path_length"][0])
-        route = route if math.isfinite(route) and route > 0 else 100.0
-        k = self.settings.time_scale if self.settings.stack in NAV2_STACKS else 1.0
-        start = 600.0 if self.settings.stack == "external" else self.settings.start_timeout
-        return 2 * RobotSimConfig().time_limit(route, self.prepared.speed) / k + start + RESULT_SLACK_S
-
-    def run(self, entry: Entry) -> tuple[Any, int, float, int]:
-        """(outcome, scenario id, wall seconds, wall start ns) of one run; a lost one is recorded as such."""
-        sid, self.sid = self.sid, self.sid + 1
-        scenario = self.problem.parse(entry.scenario)
-        t0, w0 = time.monotonic(), time.time_ns()
-        self.driver.send(self.run_id, sid, scenario, self.settings.seed)
-        limit = self.limit(entry)
-        outcome = self.driver.wait(self.run_id, sid, limit, stop=lambda: self.died() is not None)
-        if outcome is None:
-            why = self.died() or f"no answer within {limit:.0f} s"
-            outcome = self.driver.lost(self.run_id, sid, f"the runner got no result: {why}")
-            self.node.spin_until(lambda: False, 0.5)  # the recorder takes it
-        return outcome, sid, time.monotonic() - t0, w0
-
-    def close(self) -> None:
-        self.node.spin_until(lambda: False, 0.3)  # the last result reaches the recorder
-        try:
-            self.node.shutdown()
-        finally:
-            order = [n for n in self.group.procs if n != "recorder"] + ["recorder"]
-            self.group.stop(order, timeout=30.0)
 
 
 def run_trials(suite: Suite, prepared: list[Prepared], settings: TrialSettings,
@@ -286,41 +111,73 @@ def run_trials(suite: Suite, prepared: list[Prepared], settings: TrialSettings,
         + (f" ({sum(len(suite.entries) * settings.repeat for _ in prepared) - total} already in {settings.results})"
            if total < len(suite.entries) * settings.repeat * len(prepared) else ""))
     made: dict[str, int] = {}
-    count, t_start = 0, time.monotonic()
+    clock = {"count": 0, "start": time.monotonic(), "total": total}
+    injector = Injector(settings.faults, say)
     for p, todo in plans:
-        if not todo:
-            continue
-        label = p.config.label
-        session = StackSession(settings, suite, p, say)
-        say(f"[{label}] stack {settings.stack}, params {p.path or '(defaults)'}; bag {session.bag}")
-        errors = 0
-        try:
-            if not session.ready():
-                raise StackStopped(f"[{label}] the stack's nodes did not come up in {settings.ready_timeout:.0f} s "
-                               f"(logs: {session.dir / 'logs'})")
-            done = log.done(label)
-            for _, entry in todo:
-                repeat = done[entry.key] + 1
-                outcome, sid, wall, w0 = session.run(entry)
-                row = row_of(outcome, entry, suite, p, settings, repeat, session.run_id, sid, session.bag, wall, w0)
-                log.append(row)
-                count += 1
-                made[label] = made.get(label, 0) + 1
-                if counted(row):
-                    done[entry.key] += 1
-                    errors = 0
-                else:
-                    errors += 1
-                eta = (time.monotonic() - t_start) / count * (total - count)
-                say(f"[{count}/{total}] {label} {entry.name} run {repeat}/{settings.repeat}: {outcome.verdict[:90]}"
-                    + (f" ({outcome.detail[:120]})" if outcome.failed or not counted(row) else "")
-                    + f"  {wall:.0f} s" + (f", about {eta / 60:.0f} min left" if count < total else ""))
-                if errors >= settings.max_errors:
-                    raise StackStopped(f"[{label}] {errors} errors in a row, the last: {outcome.detail[:200]} "
-                                   f"(logs: {session.dir / 'logs'}); rerun the same command to resume")
-        finally:
-            session.close()
+        if todo:
+            made[p.config.label] = _run_configuration(suite, p, todo, settings, log, injector, clock, say)
     return made
 
 
-__all__ = ["StackSession", "StackStopped", "SuiteDriver", "TrialSettings", "row_of", "run_trials", "stack_nodes"]
+def _run_configuration(suite: Suite, p: Prepared, todo: list[tuple[int, Entry]], settings: TrialSettings,
+                       log: TrialLog, injector: Injector, clock: dict, say: Callable[[str], None]) -> int:
+    """One configuration's runs on one session, with the reruns that crashes and our errors call for."""
+    label = p.config.label
+    session = StackSession(settings, suite, p, say, injector)
+    say(f"[{label}] stack {settings.stack}, params {p.path or '(defaults)'}; bag {session.bag}")
+    made, errors = 0, 0
+    queue: list[tuple[Entry, dict]] = [(entry, {}) for _, entry in todo]
+    try:
+        if not session.ready():
+            raise StackStopped(f"[{label}] the stack's nodes did not come up in {settings.ready_timeout:.0f} s "
+                               f"(logs: {session.dir / 'logs'})")
+        done = log.done(label)
+        while queue:
+            entry, extra = queue.pop(0)
+            made += 1
+            before = session.between_runs()
+            bag = session.bags[-1]
+            outcome, sid, wall, w0, deaths = session.run(entry, made)
+            restarts = session.recover(deaths) if deaths else []
+            repeat = done[entry.key] + 1
+            events = [{"process": d.process, "part": d.part, "what": d.what} for d in deaths]
+            row = row_of(outcome, entry, suite, p, settings, repeat, session.run_id, sid, bag, wall, w0,
+                         {**extra, "events": events, "restarts": before + restarts})
+            log.append(row)
+            clock["count"] += 1
+            explained = any(d.part == "ours" for d in deaths) and all(r["ok"] for r in restarts)
+            if counted(row):
+                done[entry.key] += 1
+                errors = 0
+            elif not explained:  # an error a restart of ours explains is not the kind that repeats
+                errors += 1
+            _say_run(say, clock, label, entry, repeat, settings.repeat, outcome, row, wall)
+            if outcome.failure_kind == "sut_crashed" and "crash_rerun_of" not in extra:
+                # once more on the fresh stack: does the crash come back?
+                queue.insert(0, (entry, {"crash_rerun_of": {"run_id": session.run_id, "scenario_id": sid,
+                                                            "detail": outcome.detail}}))
+                clock["total"] += 1
+            elif not counted(row) and any(d.part == "ours" for d in deaths):
+                queue.insert(0, (entry, extra))  # ours died: the same run again, on the part restarted
+                clock["total"] += 1
+            if errors >= settings.max_errors:
+                raise StackStopped(f"[{label}] {errors} errors in a row, the last: {outcome.detail[:200]} "
+                                   f"(logs: {session.dir / 'logs'}); rerun the same command to resume")
+    finally:
+        session.close()
+    return made
+
+
+def _say_run(say: Callable[[str], None], clock: dict, label: str, entry: Entry, repeat: int, of: int, outcome: Any,
+             row: dict, wall: float) -> None:
+    count, total = clock["count"], clock["total"]
+    eta = (time.monotonic() - clock["start"]) / count * max(total - count, 0)
+    rerun = row.get("crash_rerun_of")
+    say(f"[{count}/{total}] {label} {entry.name} run {repeat}/{of}: {outcome.verdict[:90]}"
+        + (f" ({outcome.detail[:120]})" if outcome.failed or not counted(row) else "")
+        + (" (the crash's rerun on a fresh stack: it " + ("came back" if outcome.failure_kind == "sut_crashed"
+                                                            else "did not come back") + ")" if rerun else "")
+        + f"  {wall:.0f} s" + (f", about {eta / 60:.0f} min left" if count < total else ""))
+
+
+__all__ = ["StackStopped", "TrialSettings", "row_of", "run_trials", "utc_stamp"]

@@ -77,12 +77,12 @@ def graph(tmp_path, monkeypatch, ros_domain):
 
 class Driver:
     """Publishes scenario messages like the generator and collects every result (the runner's
-    ``trials.runner.SuiteDriver``, sending a batch at once)."""
+    ``trials.session.SuiteDriver``, sending a batch at once)."""
 
     def __init__(self, node, problem):
         from ambiegen_ros.ros import topics
         from ambiegen_ros.ros.qos import STREAM
-        from ambiegen_ros.trials.runner import SuiteDriver
+        from ambiegen_ros.trials.session import SuiteDriver
 
         self.suite_driver = SuiteDriver(node, problem)
         self.node, self.problem, self.conv = node, problem, conversions

@@ -1,0 +1,434 @@
+"""One configuration's stack, started, watched and kept alive for as long as its runs last.
+
+The session starts what a campaign starts (``launch_logic``: ``robot_world`` + the stack +
+``sut_adapter``, or our ND stack) and a recorder, each as a process of its own, and sends the
+scenarios from a node in this process (``SuiteDriver``, as the generator does). While a run is on,
+it watches every process (``supervise.Watch``): one that exits, is killed or is stopped is an event
+on ``/ambiegen/stack_events``, which the adapter turns into the run's end (the stack's:
+FAIL(sut_crashed), certified as any failure; ours: an error record), and so does a stack that stops
+commanding (no ``/cmd_vel`` for ``hang_after`` s while the run is on). After the run the session
+restarts what died (the whole stack for a stack's process: a fresh stack; the part alone for one
+of ours; the recorder into a new file, the old one recovered) and says how long it took. Faults
+can be injected on a run's events (``faults``). Nothing here decides verdicts: the adapter does.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+from .configs import NAV2_STACKS, Prepared
+from .faults import Injector
+from .suite import Entry, Suite, problem_of
+from .supervise import Death, Watch
+
+RESULT_SLACK_S = 60.0  # beyond the adapter's own guard, before the runner calls a scenario lost
+MOVING_MPS = 0.05  # a run's robot moves once its odometry says this fast (injected faults wait for it)
+GONE_TIMEOUT_S = 60.0  # a killed part's endpoints leave the graph within its lease (DDS: about 10 s)
+
+
+class StackStopped(Exception):
+    """The runs of a configuration stopped: the stack did not come up or back, or kept failing to answer."""
+
+
+class SuiteDriver:
+    """Publishes scenarios as the generator does and takes every result; answers a lost one with a
+    published result of its own (``sim_timeout``, or ``error`` naming a part of ours that died), so
+    the log accounts for every scenario it sent."""
+
+    def __init__(self, node: Any, problem: Any):
+        from ..ros import conversions, topics
+        from ..ros.qos import LATCHED, STREAM
+
+        self.node, self.problem, self.conv, self.topics = node, problem, conversions, topics
+        self.pub = node.create_publisher(topics.SCENARIO_TYPES[problem.name], topics.scenarios(problem.name), STREAM)
+        self.pub_results = node.create_publisher(topics.RESULT_TYPE, topics.RESULTS, STREAM)
+        self.pub_config = node.create_publisher(topics.RUN_CONFIG_TYPE, topics.RUN_CONFIG, LATCHED)
+        self.results: dict[tuple[str, int], Any] = {}
+        self.workers: dict[tuple[str, int], str] = {}
+        node.create_subscription(topics.RESULT_TYPE, topics.RESULTS, self.on_result, STREAM)
+
+    def on_result(self, msg: Any) -> None:
+        key = (msg.run_id, int(msg.scenario_id))
+        self.results.setdefault(key, self.conv.outcome_from_message(msg))
+        self.workers.setdefault(key, msg.worker)
+
+    def announce(self, run_id: str, config: dict) -> None:
+        """The run's configuration on ``/ambiegen/run_config`` (latched): the bag says what ran."""
+        from .. import __version__
+
+        self.pub_config.publish(self.conv.run_config_message(self.node.new_message, self.node.now_ns(), run_id, config,
+                                                             __version__))
+
+    def wait_matched(self, count: int, timeout: float) -> bool:
+        return self.node.spin_until(lambda: self.pub.subscription_count() >= count, timeout)
+
+    def send(self, run_id: str, sid: int, scenario: Any, seed: int = 0) -> None:
+        meta = self.conv.ScenarioMeta(run_id, sid, seed=seed)
+        self.pub.publish(self.conv.scenario_message(self.node.new_message, self.node.now_ns(), self.problem, scenario,
+                                                    meta))
+
+    def wait(self, run_id: str, sid: int, timeout: float, stop: Callable[[], bool] = lambda: False) -> Any:
+        self.node.spin_until(lambda: (run_id, sid) in self.results or stop(), timeout)
+        return self.results.get((run_id, sid))
+
+    def lost(self, run_id: str, sid: int, detail: str, kind: str = "sim_timeout") -> Any:
+        """Record a scenario that got no answer: a result of ours, published (and so logged)."""
+        from ..sims.outcome import Outcome
+
+        outcome = Outcome.rejected(detail, kind=kind)
+        self.pub_results.publish(self.conv.result_message(self.node.new_message, self.node.now_ns(), run_id, sid,
+                                                          self.problem.name, "ambiegen_trials", outcome))
+        self.results[(run_id, sid)] = outcome
+        return outcome
+
+
+def stack_nodes(settings: Any, prepared: Prepared, problem_file: Path, bag: Path, tag: str) -> list:
+    """The node set of one configuration: recorder, world, stack, adapter (``launch_logic.NodeSpec``)."""
+    from ..campaign import STACK_TOPICS
+    from ..launch_logic import NAV2_TOPICS, NodeSpec, nav2_stack, nd_stack
+    from ..ros import topics
+
+    files = [str(prepared.path)] if prepared.path else []
+    nav2 = settings.stack in NAV2_STACKS
+    recorded = (NAV2_TOPICS if nav2 else STACK_TOPICS) + (topics.STACK_EVENTS,)
+    recorder = NodeSpec("recorder", "recorder", {"output": str(bag), "extra_topics": ",".join(recorded)})
+    if nav2:
+        start = 600.0 if settings.stack == "external" else settings.start_timeout
+        nodes = nav2_stack("", settings.stack, prepared.params, prepared.path, settings.seed, tag, settings.time_scale,
+                           settings.map_upsample, start, settings.early_verdicts, prepared.speed, str(problem_file), "")
+        if settings.known_failures:
+            nodes[-1].parameters["known_failures"] = settings.known_failures
+    else:
+        nodes = nd_stack(settings.seed, tag, None, str(problem_file))
+    for node in nodes:
+        if node.package == "ambiegen_ros":
+            node.params_files = files + [f for f in node.params_files if f not in files]
+        if node.executable == "robot_world" and settings.fault_speed is not None:
+            node.parameters["sim.contact_fault_speed"] = settings.fault_speed
+        if node.executable == "sut_adapter":
+            node.parameters["min_result_subscribers"] = 2  # the runner and the recorder
+            if settings.fault_speed is not None:
+                node.parameters["oracle.contact_fault_speed"] = settings.fault_speed
+    return [recorder, *nodes]
+
+
+class StackSession:
+    """One configuration's processes and the in-process driver, for as long as its runs last."""
+
+    def __init__(self, settings: Any, suite: Suite, prepared: Prepared, say: Callable[[str], None],
+                 injector: Injector | None = None):
+        import yaml
+
+        from ..campaign import ProcessGroup, discovery_scope, node_argv
+        from ..ros import topics
+        from ..ros.qos import STREAM
+        from ..ros.transport import create_node
+        from .runner import utc_stamp
+
+        self.settings, self.suite, self.prepared, self.say = settings, suite, prepared, say
+        self.injector = injector or Injector([], say)
+        self.dir = Path(settings.bags) / f"{prepared.config.label}_{utc_stamp()}"
+        self.dir.mkdir(parents=True, exist_ok=False)
+        self.bag = self.dir / "trials.mcap"
+        self.bags = [self.bag]
+        problem_file = self.dir / "problem.yaml"
+        problem_file.write_text(yaml.safe_dump({"problem": suite.problem, "problem_config": suite.problem_config}))
+        self.run_id = f"trials-{prepared.config.label}-{self.dir.name[-16:]}"
+        env = dict(os.environ, PYTHONUNBUFFERED="1", **settings.extra_env)
+        if settings.domain_id is not None:
+            env["ROS_DOMAIN_ID"] = str(settings.domain_id)
+        env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = discovery_scope(None, env)
+        self.group = ProcessGroup(self.dir / "logs", env)
+        self.argv: dict[str, list[str]] = {}
+        self.nodes = stack_nodes(settings, prepared, problem_file, self.bag, self.run_id[-6:])
+        for node in self.nodes:
+            self.argv[node.name] = node_argv(node)
+        if settings.stack == "bringup":
+            self.argv["nav2"] = ["ros2", "launch", "nav2_bringup", "navigation_launch.py", "use_sim_time:=true",
+                                 "autostart:=true", "use_composition:=False", f"params_file:={prepared.path}"]
+        for name, argv in self.argv.items():
+            self.group.start_argv(name, argv)
+        if settings.stack == "external":
+            say(f"start your Nav2 now, in ROS domain {env.get('ROS_DOMAIN_ID', '0')}: ros2 launch nav2_bringup "
+                f"navigation_launch.py use_sim_time:=true params_file:={prepared.path}")
+        self.stack_parts = [n for n in self.argv if n not in ("recorder", "robot_world", "sut_adapter")]
+        self.watch = Watch(self.group)
+        for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE"):  # the driver joins the same graph
+            if key in env:
+                os.environ[key] = env[key]
+        self.node = create_node("ambiegen_trials", argv=[])
+        self.problem = problem_of(suite)
+        self.driver = SuiteDriver(self.node, self.problem)
+        self.pub_events = self.node.create_publisher(topics.STACK_EVENTS_TYPE, topics.STACK_EVENTS, STREAM)
+        self.node.create_subscription("nav_msgs/msg/Odometry", "/odom", self._on_odom, STREAM)
+        self.cmd_vel_seen = time.monotonic()
+        self._cmd_sub = False
+        self.driver.announce(self.run_id, {"trials": prepared.record(), "stack": settings.stack,
+                                           "problem": suite.problem, "problem_config": suite.problem_config,
+                                           "suite": suite.sources, "repeat": settings.repeat,
+                                           "seed": settings.seed, "time_scale": settings.time_scale,
+                                           "command": sys.argv})
+        self.sid = 0
+        self.in_flight = False
+        self.moved_at: float | None = None
+        self.run_no = 0
+        self.deaths: list[Death] = []  # of the run in flight
+        self._next_pulse = 0.0
+        self.hung_said = False
+        self.unlogged: list[tuple[int, Any]] = []  # results no recorder heard (it was dead): logged again
+
+    # --- watching -------------------------------------------------------------------------------
+    def _on_odom(self, msg: Any) -> None:
+        if self.in_flight and self.moved_at is None and abs(float(msg.twist.twist.linear.x)) > MOVING_MPS:
+            self.moved_at = time.monotonic()
+
+    def _on_cmd_vel(self, _msg: Any) -> None:
+        self.cmd_vel_seen = time.monotonic()
+
+    def _watch_cmd_vel(self) -> None:
+        """Subscribe to the stack's commands once it publishes them, with the type it offers."""
+        if self._cmd_sub:
+            return
+        offered = self.node.publishers_info("/cmd_vel")
+        if offered:
+            from ..ros.qos import STREAM
+
+            self.node.create_subscription(offered[0].typename, "/cmd_vel", self._on_cmd_vel, STREAM)
+            self._cmd_sub = True
+
+    def event(self, death: Death) -> None:
+        """Say it, log it (``events.jsonl`` beside the bag), publish it for the adapter and the bag."""
+        from ..ros import conversions
+
+        self.say(f"[{self.prepared.config.label}] {death.part}: {death.words()}"
+                 + (f" (run {self.run_no})" if self.in_flight else ""))
+        self.pub_events.publish(conversions.stack_event(self.node.new_message, self.node.now_ns(), death.process,
+                                                        death.part, death.what))
+        self.log_event({"event": "death", "process": death.process, "part": death.part, "what": death.what,
+                        "group": death.group, "run": self.run_no if self.in_flight else None})
+
+    def log_event(self, record: dict) -> None:
+        with open(self.dir / "events.jsonl", "a") as fh:
+            fh.write(json.dumps({"when": time.time(), **record}) + "\n")
+
+    def pulse(self) -> None:
+        """Five times a second while waiting: deaths and hangs, and the injected faults due."""
+        now = time.monotonic()
+        if now < self._next_pulse:
+            return
+        self._next_pulse = now + 0.2
+        for death in self.watch.poll():
+            self.event(death)
+            if self.in_flight:
+                self.deaths.append(death)
+        if self.in_flight:
+            self.injector.tick(self.group, self.run_no, self.moved_at)
+            self._watch_cmd_vel()
+            quiet = now - max(self.cmd_vel_seen, self.sent_at)
+            if self._cmd_sub and not self.hung_said and self.settings.hang_after > 0 and quiet > self.settings.hang_after:
+                self.hung_said = True
+                death = Death("the stack", "stack", f"stopped commanding: no /cmd_vel for {quiet:.0f} s", "cmd_vel")
+                self.event(death)
+                self.deaths.append(death)
+
+    # --- the runs ---------------------------------------------------------------------------------
+    def ready(self) -> bool:
+        """The adapter and the recorder take scenarios (a bound, not a wait: it ends once they match)."""
+        return self.driver.wait_matched(2, self.settings.ready_timeout)
+
+    def limit(self, entry: Entry) -> float:
+        """Wall seconds the runner waits for an answer: twice the oracle's time limit for the route at
+        the stack's speed, over the time scale, plus the adapter's start and our slack."""
+        from ..sims.robot import RobotSimConfig
+
+        scenario = self.problem.parse(entry.scenario)
+        route = float(self.problem.evaluate_scenarios([scenario]).metrics["path_length"][0])
+        route = route if math.isfinite(route) and route > 0 else 100.0
+        k = self.settings.time_scale if self.settings.stack in NAV2_STACKS else 1.0
+        start = 600.0 if self.settings.stack == "external" else self.settings.start_timeout
+        return 2 * RobotSimConfig().time_limit(route, self.prepared.speed) / k + start + RESULT_SLACK_S
+
+    def _adapter_gone(self) -> bool:
+        return any(d.process == "sut_adapter" for d in self.deaths)
+
+    def run(self, entry: Entry, run_no: int) -> tuple[Any, int, float, int, list[Death]]:
+        """(outcome, scenario id, wall seconds, wall start ns, deaths during it) of one run. A run whose
+        adapter or recorder died is an error record of ours (the adapter's own answer, if any, is not
+        what the log holds); a lost one is recorded as such."""
+        sid, self.sid = self.sid, self.sid + 1
+        scenario = self.problem.parse(entry.scenario)
+        self.run_no, self.deaths, self.moved_at, self.hung_said = run_no, [], None, False
+        t0, w0 = time.monotonic(), time.time_ns()
+        self.sent_at = t0
+        self.in_flight = True
+        self.driver.send(self.run_id, sid, scenario, self.settings.seed)
+        limit = self.limit(entry)
+
+        def done() -> bool:
+            self.pulse()
+            return self._adapter_gone()
+
+        try:
+            outcome = self.driver.wait(self.run_id, sid, limit, stop=done)
+            ours = [d for d in self.deaths if d.part == "ours"]
+            if outcome is None:
+                if ours:
+                    outcome = self.driver.lost(self.run_id, sid, f"{ours[0].words()} (ours, not the stack's failure): "
+                                                                 "run it again", kind="error")
+                else:
+                    outcome = self.driver.lost(self.run_id, sid, f"the runner got no result in {limit:.0f} s")
+            elif any(d.process == "recorder" for d in ours) and outcome.failure_kind != "error":
+                from ..sims.outcome import Outcome
+
+                verdict = outcome.verdict
+                outcome = Outcome.rejected(f"the recorder died during the run (its log lacks part of it; the stack "
+                                           f"said {verdict}): run it again", kind="error")
+            if any(d.process == "recorder" for d in ours):
+                self.unlogged.append((sid, outcome))  # logged by the next recorder, once it is up
+            self.node.spin_until(lambda: False, 0.2)  # the recorder takes the result
+        finally:
+            self.in_flight = False
+        return outcome, sid, time.monotonic() - t0, w0, list(self.deaths)
+
+    # --- recovery ---------------------------------------------------------------------------------
+    def between_runs(self) -> list[dict]:
+        """What died while no run was on, said and restarted before the next run goes out."""
+        deaths = self.watch.poll()
+        for death in deaths:
+            self.event(death)
+        return self.recover(deaths) if deaths else []
+
+    def recover(self, deaths: list[Death]) -> list[dict]:
+        """Restart what died or hung: the whole stack for a stack's part, the part alone for ours.
+        Returns a record per restart (what, why, seconds it took until the part showed up again)."""
+        from ..nodes.recorder import CANNOT_WRITE
+
+        later = self.watch.poll()
+        for death in later:
+            self.event(death)
+        deaths = deaths + later
+        if any(d.process == "recorder" and d.code == CANNOT_WRITE for d in deaths):
+            raise StackStopped(f"the recorder cannot write {self.bags[-1]} (disk full?); the log holds everything up "
+                               f"to its last flush (ambiegen recover {self.bags[-1]}). Free room, then the same "
+                               "command resumes")
+        groups: dict[str, Death] = {}
+        for death in deaths:
+            name = death.group if death.group in self.argv else ("nav2" if "nav2" in self.argv else death.group)
+            if death.part == "stack":
+                for part in self.stack_parts:
+                    groups.setdefault(part, death)
+            elif name in self.argv:
+                groups.setdefault(name, death)
+        if "robot_world" in groups:  # a new world's clock starts again at 0: the stack must start with it
+            for part in self.stack_parts:
+                groups.setdefault(part, groups["robot_world"])
+        order = sorted(groups, key=lambda n: (n != "robot_world", n in self.stack_parts))  # world, ours, stack
+        return [self.restart(name, groups[name]) for name in order]
+
+    def restart(self, name: str, why: Death) -> dict:
+        """Kill ``name``'s process group for good and start it again; wait until it shows up."""
+        t0 = time.monotonic()
+        proc = self.group.procs.get(name)
+        if proc is not None:
+            for sig in (signal.SIGCONT, signal.SIGKILL):  # a stopped process too
+                try:
+                    os.killpg(proc.pid, sig)
+                except (ProcessLookupError, PermissionError):
+                    pass
+            proc.wait()
+        # the dead part's endpoints leave the graph at the end of its lease: only then is its
+        # successor told apart from it (a scenario sent before would miss a new adapter or recorder)
+        self.node.spin_until(lambda: self._gone(name), GONE_TIMEOUT_S)
+        argv = list(self.argv[name])
+        if name == "recorder":
+            self.recover_bag(self.bags[-1])
+            self.bags.append(self.dir / f"trials.{len(self.bags)}.mcap")
+            argv = [a.replace(f"output:={self.bags[-2]}", f"output:={self.bags[-1]}") for a in argv]
+            self.argv[name] = argv
+        self.group.start_argv(name, argv)
+        self.watch.forget(name)
+        ok = self.node.spin_until(lambda: self._shows_up(name), self.settings.ready_timeout)
+        took = time.monotonic() - t0
+        if ok and name == "recorder":  # what the dead recorder did not hear: its own death, the run's result
+            self.relog(why)
+        record = {"event": "restart", "process": name, "why": why.words(), "took_s": round(took, 2), "ok": ok}
+        self.log_event(record)
+        self.say(f"[{self.prepared.config.label}] restarted {name} ({why.words()}) in {took:.1f} s"
+                 + ("" if ok else " but it did not show up"))
+        if not ok:
+            raise StackStopped(f"{name} did not come back within {self.settings.ready_timeout:.0f} s after "
+                               f"{why.words()} (logs: {self.dir / 'logs'})")
+        return record
+
+    def relog(self, why: Death) -> None:
+        """After a recorder restart: its death and the results it missed, into the new bag."""
+        from ..ros import conversions
+
+        self.node.spin_until(lambda: False, 1.5)  # its readers match ours (it subscribes as it discovers)
+        self.pub_events.publish(conversions.stack_event(self.node.new_message, self.node.now_ns(), why.process,
+                                                        why.part, f"{why.what} (restarted into {self.bags[-1].name})"))
+        for sid, outcome in self.unlogged:
+            self.driver.pub_results.publish(conversions.result_message(
+                self.node.new_message, self.node.now_ns(), self.run_id, sid, self.problem.name, "ambiegen_trials",
+                outcome))
+        self.unlogged.clear()
+        self.node.spin_until(lambda: False, 0.3)
+
+    def _gone(self, name: str) -> bool:
+        """The part's endpoints are off the graph (see ``_shows_up`` for what each one shows)."""
+        info = self.node.publishers_info
+        if name == "robot_world":
+            return not info("/odom")
+        if name in ("sut_adapter", "recorder"):
+            return self.driver.pub.subscription_count() <= 1
+        return not info("/cmd_vel")
+
+    def _shows_up(self, name: str) -> bool:
+        """The restarted part is on the graph: the world publishes /odom, the stack /cmd_vel (Nav2:
+        and its navigate_to_pose server), the adapter and the recorder take scenarios."""
+        info = self.node.publishers_info
+        if name == "robot_world":
+            return bool(info("/odom"))
+        if name in ("sut_adapter", "recorder"):
+            return self.driver.pub.subscription_count() >= 2
+        if name == "nav2" or self.settings.stack in NAV2_STACKS:
+            return bool(info("/cmd_vel")) and bool(info("/navigate_to_pose/_action/status"))
+        return bool(info("/cmd_vel"))
+
+    def recover_bag(self, path: Path) -> Path | None:
+        """A bag cut short (its recorder killed) rebuilt beside it (``ambiegen recover``); None when it
+        is whole or absent."""
+        from mcap.reader import make_reader
+
+        from ..ros.mcap_log import recover
+
+        if not path.exists():
+            return None
+        try:
+            with open(path, "rb") as fh:
+                if make_reader(fh).get_summary() is not None:
+                    return None
+        except Exception:  # noqa: BLE001 - a file cut short fails in many ways; recover decides
+            pass
+        out = path.with_suffix(".recovered.mcap")
+        stats = recover(path, out)
+        self.log_event({"event": "recovered", "bag": str(path), "into": str(out), **stats})
+        self.say(f"[{self.prepared.config.label}] the recorder's bag cut short, rebuilt: {out}")
+        return out
+
+    def close(self) -> None:
+        self.node.spin_until(lambda: False, 0.3)  # the last result reaches the recorder
+        try:
+            self.node.shutdown()
+        finally:
+            order = [n for n in self.group.procs if n != "recorder"] + ["recorder"]
+            self.group.stop(order, timeout=30.0)
+
+
+__all__ = ["SuiteDriver", "StackSession", "StackStopped", "stack_nodes"]

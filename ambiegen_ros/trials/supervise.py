@@ -1,0 +1,167 @@
+"""Watching the processes of a stack session: who died, how, and whose they were. No ROS.
+
+A process of ours (``robot_world``, ``sut_adapter``, the recorder) or of the stack (``nd_driver``,
+Nav2's servers, the ``ros2 launch`` that holds them) can exit, be killed, or be stopped. The
+session's processes are its own children, so their exit codes say how (a negative code is the
+signal); Nav2's servers are children of ``ros2 launch``, which prints a line for each one that
+dies (``[ERROR] [controller_server-2]: process has died [pid 1234, exit code -9, ...]``); a stopped
+process (SIGSTOP: state ``T`` in ``/proc/<pid>/stat``) is a hang. ``Watch.poll`` returns each such
+event once, as a ``Death``; the session publishes it on ``/ambiegen/stack_events`` and restarts
+what it must.
+"""
+from __future__ import annotations
+
+import os
+import re
+import signal
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+OURS = ("robot_world", "sut_adapter", "recorder")
+LAUNCH_DIED = re.compile(r"\[ERROR\] \[(?P<process>[A-Za-z0-9_./-]+?)-\d+\]: process has died "
+                         r"\[pid (?P<pid>\d+), exit code (?P<code>-?\d+)")
+
+
+def part_of(name: str) -> str:
+    """"ours" for the world, the adapter and the recorder, "stack" for anything else."""
+    return "ours" if name in OURS else "stack"
+
+
+def exit_words(code: int | None) -> str:
+    """'killed by SIGKILL', 'exited with code 1' (a shell's 128 + n is the signal n too)."""
+    if code is None:
+        return "is gone"
+    number = -code if code < 0 else code - 128 if 128 < code < 160 else None
+    if number:
+        try:
+            return f"killed by {signal.Signals(number).name}"
+        except ValueError:
+            return f"killed by signal {number}"
+    return f"exited with code {code}"
+
+
+@dataclass
+class Death:
+    process: str  # the node or process name
+    part: str  # stack | ours
+    what: str  # killed by SIGKILL, exited with code 1, stopped (hung)
+    group: str  # the session's process it belongs to (the launch, for a Nav2 server)
+    code: int | None = None  # its exit status, when the session saw it exit
+    at: float = field(default_factory=time.monotonic)
+
+    def words(self) -> str:
+        return f"{self.process} {self.what}"
+
+
+def node_name(pid: int) -> str | None:
+    """The ROS node name a process runs (``__node:=NAME`` on its command line), else its command."""
+    try:
+        args = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
+    except OSError:
+        return None
+    for arg in args:
+        if arg.startswith(b"__node:="):
+            return arg[8:].decode(errors="replace")
+    try:
+        return Path(f"/proc/{pid}/comm").read_text().strip()
+    except OSError:
+        return None
+
+
+def descendants(pid: int) -> list[int]:
+    """Every process below ``pid`` (children first, then theirs)."""
+    out, todo = [], [pid]
+    while todo:
+        parent = todo.pop()
+        try:
+            tasks = list(Path(f"/proc/{parent}/task").iterdir())
+        except OSError:
+            continue
+        for task in tasks:
+            try:
+                kids = [int(k) for k in (task / "children").read_text().split()]
+            except OSError:
+                continue
+            out += kids
+            todo += kids
+    return out
+
+
+def stopped(pid: int) -> bool:
+    """Is the process stopped (SIGSTOP, state T)?"""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat[stat.rfind(")") + 2:].startswith("T")
+
+
+class Watch:
+    """The deaths and hangs of a process group's processes (``campaign.ProcessGroup``), each once."""
+
+    def __init__(self, group: Any, launches: tuple[str, ...] = ("nav2",)):
+        self.group = group
+        self.launches = launches  # processes that are a `ros2 launch`: their log names the servers that die
+        self.seen: set[tuple[str, int]] = set()  # (name, pid) already reported
+        self.halted: set[int] = set()  # pids reported as stopped, until they run again
+        self.offsets: dict[str, int] = {}
+
+    def forget(self, name: str) -> None:
+        """``name`` was restarted: its new process is watched afresh (its log is read from its end)."""
+        self.seen = {(n, pid) for n, pid in self.seen if n != name}
+        log = self.group.log_dir / f"{name}.log"
+        self.offsets[name] = log.stat().st_size if log.exists() else 0
+
+    def _launch_deaths(self, name: str) -> list[Death]:
+        log = self.group.log_dir / f"{name}.log"
+        try:
+            with open(log, "rb") as fh:
+                fh.seek(self.offsets.get(name, 0))
+                text = fh.read()
+        except OSError:
+            return []
+        self.offsets[name] = self.offsets.get(name, 0) + len(text)
+        out = []
+        for found in LAUNCH_DIED.finditer(text.decode(errors="replace")):
+            key = (found["process"], int(found["pid"]))
+            if key not in self.seen:
+                self.seen.add(key)
+                out.append(Death(found["process"], part_of(name), exit_words(int(found["code"])), name,
+                                 int(found["code"])))
+        return out
+
+    def poll(self) -> list[Death]:
+        out: list[Death] = []
+        for name, proc in list(self.group.procs.items()):
+            if name in self.launches:
+                out += self._launch_deaths(name)
+            code = proc.poll()
+            if code is not None:
+                if (name, proc.pid) not in self.seen:
+                    self.seen.add((name, proc.pid))
+                    out.append(Death(name, part_of(name), exit_words(code), name, code))
+                continue
+            for pid in [proc.pid, *descendants(proc.pid)]:
+                if stopped(pid):
+                    if pid not in self.halted:
+                        self.halted.add(pid)
+                        who = node_name(pid) if pid != proc.pid else name
+                        out.append(Death(who or name, part_of(name), "stopped (hung: SIGSTOP)", name))
+                else:
+                    self.halted.discard(pid)
+        return out
+
+
+def alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+__all__ = ["Death", "OURS", "Watch", "alive", "descendants", "exit_words", "node_name", "part_of", "stopped"]
