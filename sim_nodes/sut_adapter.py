@@ -69,6 +69,13 @@ fails too becomes ``INVALID_TEST``, with the system's kind in ``metrics["sut_fai
 ``silence_timeout`` s, or the run taking longer than ``wall_slack`` x its simulated limit /
 time_scale (+ start_timeout) wall seconds give an ``error`` result saying so.
 
+What happens to the run's processes comes on ``stack_events_topic`` (``/ambiegen/stack_events``,
+from whoever started them: ``ambiegen rerun``): a process of the stack that died or hung during the
+run ends it as FAIL(sut_crashed), with the process and how (certified like any failure); one of ours
+(the world, the recorder) ends it as an error record, to be run again. Nav2's own failure waits
+``crash_grace`` s for such a report when someone publishes them (a server killed mid-run makes
+Nav2 abort before the report of the kill arrives).
+
 One scenario runs at a time; others queue (the heartbeat reports how many). Everything happens in
 callbacks and timers; nothing blocks the executor.
 """

@@ -46,6 +46,7 @@ class TrialSettings:
     hang_after: float = 30.0  # s without /cmd_vel while a run is on: the stack hung (0: not watched)
     max_errors: int = 3
     faults: list[Fault] = field(default_factory=list)  # injected on purpose (``faults``)
+    budget_s: float | None = None  # wall seconds of sending: no run starts after it (None: all runs)
     extra_env: dict[str, str] = field(default_factory=dict)
 
 
@@ -132,7 +133,7 @@ def _run_configuration(suite: Suite, p: Prepared, todo: list[tuple[int, Entry]],
             raise StackStopped(f"[{label}] the stack's nodes did not come up in {settings.ready_timeout:.0f} s "
                                f"(logs: {session.dir / 'logs'})")
         done = log.done(label)
-        while queue:
+        while queue and not (settings.budget_s is not None and time.monotonic() - clock["start"] > settings.budget_s):
             entry, extra = queue.pop(0)
             made += 1
             before = session.between_runs()
@@ -173,7 +174,8 @@ def _say_run(say: Callable[[str], None], clock: dict, label: str, entry: Entry, 
     count, total = clock["count"], clock["total"]
     eta = (time.monotonic() - clock["start"]) / count * max(total - count, 0)
     rerun = row.get("crash_rerun_of")
-    say(f"[{count}/{total}] {label} {entry.name} run {repeat}/{of}: {outcome.verdict[:90]}"
+    which = f"run {repeat}/{of}" if repeat <= of else f"run {repeat} (one more)"
+    say(f"[{count}/{total}] {label} {entry.name} {which}: {outcome.verdict[:90]}"
         + (f" ({outcome.detail[:120]})" if outcome.failed or not counted(row) else "")
         + (" (the crash's rerun on a fresh stack: it " + ("came back" if outcome.failure_kind == "sut_crashed"
                                                             else "did not come back") + ")" if rerun else "")
