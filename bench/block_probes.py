@@ -1,8 +1,8 @@
 """Probe scenarios for Nav2's give-up at a blocked passage (issue 49), from the block search.
 
     python bench/block_probes.py --seeds 1-40 -o probes.json
-    python bench/nav2_maps.py --maps suite:probes.json --count 16 --config config/robot_hazards.yaml \\
-        --nav2 bringup --params-file .../nav2_params.yaml --time-scale 1 --label my-block-probes
+    ambiegen rerun probes.json --config config/robot_hazards.yaml --stack bringup \\
+        --params jazzy=.../nav2_params.yaml --repeat 1 --results probes.jsonl
 
 One NSGA-II run per seed on ``config/robot_hazards_block_mppi.yaml``'s problem (F1 = ``block``,
 without its restarts: each run's front is what is kept), ``--evaluations`` each. A front scenario is
@@ -11,7 +11,7 @@ with that person standing as an obstacle the true world has no clearance route
 (``sims.reference.robot``), while without them it has one (``before``), and the patient reference,
 knowing every path, reaches the goal (``after``). Nav2 then runs only what a reference passes.
 Probes are kept once per distinct (block time, start and goal turn). The suite file is written with
-each probe's ``f1`` = its block time (``nav2_maps.py`` runs the highest first) and never overwritten.
+each probe's ``f1`` = its block time (highest first) and never overwritten.
 
 The 16 probes of docs/results/nav2/mppi_block_probes_suite.json came from a first form of this
 script: the same searches (seeds 1-40, 4,000 evaluations) and checks, with ``PASSING_GAP`` at its

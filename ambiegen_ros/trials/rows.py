@@ -16,12 +16,18 @@ import json
 import os
 import sys
 from collections import Counter
+from datetime import datetime, timezone
 from pathlib import Path
 
 from ..core.errors import BadInput
 
 SCHEMA = 1
 NOT_COUNTED = ("error", "sim_timeout", "invalid_scenario")  # ours, not the stack's: run again on resume
+
+
+def utc_stamp() -> str:
+    """The UTC time in folder names and reports (sorts as it reads)."""
+    return datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
 
 
 def counted(row: dict) -> bool:

@@ -23,7 +23,7 @@ from typing import Any, Callable
 
 from .configs import Prepared
 from .faults import Fault, Injector
-from .rows import TrialLog, counted
+from .rows import TrialLog, counted, utc_stamp
 from .session import StackSession, StackStopped
 from .suite import Entry, Suite
 
@@ -48,10 +48,6 @@ class TrialSettings:
     faults: list[Fault] = field(default_factory=list)  # injected on purpose (``faults``)
     budget_s: float | None = None  # wall seconds of sending: no run starts after it (None: all runs)
     extra_env: dict[str, str] = field(default_factory=dict)
-
-
-def utc_stamp() -> str:
-    return datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
 
 
 def _number(value: Any) -> float | None:

@@ -25,6 +25,7 @@ from typing import Any, Callable
 from .configs import NAV2_STACKS, Prepared
 from .faults import Injector
 from .suite import Entry, Suite, problem_of
+from .rows import utc_stamp
 from .supervise import Death, Watch
 
 RESULT_SLACK_S = 60.0  # beyond the adapter's own guard, before the runner calls a scenario lost
@@ -129,7 +130,6 @@ class StackSession:
         from ..ros import topics
         from ..ros.qos import STREAM
         from ..ros.transport import create_node
-        from .runner import utc_stamp
 
         self.settings, self.suite, self.prepared, self.say = settings, suite, prepared, say
         self.injector = injector or Injector([], say)

@@ -1,0 +1,97 @@
+"""What a real-time Nav2 run costs, part by part, in cores (issue 58): read from /proc, nothing added.
+
+    python bench/nav2_cpu.py --seconds 600 [--tag TAG]     # while `ambiegen rerun --stack bringup` runs
+
+Every ``--every`` seconds it reads the CPU time (user + system) of each process of the running
+stack session: our three nodes (``sut_adapter``, ``robot_world``, the recorder), the runner, and
+each Nav2 server (by its ``__node:=`` name). A part's share of a core is its CPU seconds over the
+wall seconds it was watched; a process that ends (a session that moves on to its next
+configuration) is replaced by its successor and both are counted. Writes
+``bench/results/nav2_cpu[_TAG].json`` with ``ours_cores`` (the three nodes together) and
+``nav2_cores`` (every Nav2 server together), and each part's share. Sampling /proc costs nothing the
+stack would notice, so it can watch a measurement run.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from collections import defaultdict
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import write_result  # noqa: E402
+
+OURS = {"sim_nodes.sut_adapter": "sut_adapter", "sim_nodes.robot_world": "robot_world",
+        "ambiegen_ros.nodes.recorder": "recorder", "ambiegen_ros rerun": "runner", "ambiegen_ros compare": "runner"}
+NAV2_LIB = "/lib/nav2_"
+TICKS = os.sysconf("SC_CLK_TCK")
+
+
+def processes() -> dict[int, str]:
+    """pid -> part name, for the session's processes."""
+    out = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            args = (entry / "cmdline").read_bytes().split(b"\0")
+        except OSError:
+            continue
+        line = " ".join(a.decode(errors="replace") for a in args)
+        for key, name in OURS.items():
+            if key in line:
+                out[int(entry.name)] = name
+                break
+        else:
+            if NAV2_LIB in line or "/lib/opennav_" in line:
+                node = next((a[8:].decode() for a in args if a.startswith(b"__node:=")), Path(args[0].decode()).name)
+                out[int(entry.name)] = f"nav2/{node}"
+    return out
+
+
+def cpu_seconds(pid: int) -> float | None:
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / TICKS  # utime, stime
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--seconds", type=float, default=600.0)
+    ap.add_argument("--every", type=float, default=5.0)
+    ap.add_argument("--tag", default="")
+    args = ap.parse_args(argv)
+    first: dict[int, float] = {}
+    last: dict[int, float] = {}
+    names: dict[int, str] = {}
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < args.seconds:
+        for pid, name in processes().items():
+            used = cpu_seconds(pid)
+            if used is None:
+                continue
+            first.setdefault(pid, used)
+            last[pid] = used
+            names[pid] = name
+        time.sleep(args.every)
+    wall = time.monotonic() - t0
+    parts: dict[str, float] = defaultdict(float)
+    for pid, name in names.items():
+        parts[name] += last[pid] - first[pid]
+    shares = {name: round(cpu / wall, 3) for name, cpu in sorted(parts.items())}
+    ours = sum(v for k, v in shares.items() if k in ("sut_adapter", "robot_world", "recorder"))
+    nav2 = sum(v for k, v in shares.items() if k.startswith("nav2/"))
+    figures = {"wall_s": round(wall, 1), "ours_cores": round(ours, 3), "nav2_cores": round(nav2, 3),
+               "runner_cores": shares.get("runner", 0.0), "shares": shares, "cpus": os.cpu_count()}
+    path = write_result("nav2_cpu" + (f"_{args.tag}" if args.tag else ""), figures)
+    print(figures)
+    print(f"written: {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
