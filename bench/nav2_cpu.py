@@ -59,6 +59,14 @@ def cpu_seconds(pid: int) -> float | None:
     return (int(fields[11]) + int(fields[12])) / TICKS  # utime, stime
 
 
+def core_shares(first: dict[int, float], last: dict[int, float], names: dict[int, str], wall: float) -> dict[str, float]:
+    """Each part's CPU seconds (its processes, successors included) over the wall seconds watched."""
+    parts: dict[str, float] = defaultdict(float)
+    for pid, name in names.items():
+        parts[name] += last[pid] - first[pid]
+    return {name: round(cpu / wall, 3) for name, cpu in sorted(parts.items())}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seconds", type=float, default=600.0)
@@ -79,10 +87,7 @@ def main(argv: list[str] | None = None) -> int:
             names[pid] = name
         time.sleep(args.every)
     wall = time.monotonic() - t0
-    parts: dict[str, float] = defaultdict(float)
-    for pid, name in names.items():
-        parts[name] += last[pid] - first[pid]
-    shares = {name: round(cpu / wall, 3) for name, cpu in sorted(parts.items())}
+    shares = core_shares(first, last, names, wall)
     ours = sum(v for k, v in shares.items() if k in ("sut_adapter", "robot_world", "recorder"))
     nav2 = sum(v for k, v in shares.items() if k.startswith("nav2/"))
     figures = {"wall_s": round(wall, 1), "ours_cores": round(ours, 3), "nav2_cores": round(nav2, 3),

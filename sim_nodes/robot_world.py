@@ -78,7 +78,7 @@ class RobotWorldNode:
             ("obstacles", topics.WORLD_OBSTACLES, "std_msgs/String in: JSON of what is in the world but not in the "
                                                   "map ('' = none; with paired_start a scenario waits for it too)"),
             ("markers", topics.WORLD_MARKERS, "visualization_msgs/MarkerArray out: the unmapped obstacles and "
-                                              "people, with every scan ('' = none)"))}
+                                              "people, with a scan, markers_rate a second ('' = none)"))}
         self.frames = {name: p(f"{name}_frame", default) for name, default in (
             ("map", "map"), ("odom", "odom"), ("base", "base_link"), ("scan", "base_scan"))}
         stamped = self.stamped = p("cmd_vel_stamped", False, "velocity commands are geometry_msgs/TwistStamped "
@@ -87,6 +87,8 @@ class RobotWorldNode:
         lockstep = bool(p("lockstep", False, "after each scan, wait for a velocity command before stepping on"))
         scan_rate = float(p("scan_rate", 10.0, "laser scans per simulated second"))
         clock_rate = float(p("clock_rate", 100.0, "clock messages per wall second"))
+        markers_rate = float(p("markers_rate", 5.0, "marker arrays per simulated second, with a scan (they are for "
+                                                    "viewing; at most scan_rate)"))
         cmd_timeout = float(p("cmd_timeout", 0.5, "simulated seconds a command is held (0 = until the next)"))
         self.resend_period = float(p("resend_period", 0.2, "lockstep: wall seconds before an unanswered scan is re-sent"))
         seed = int(p("seed", 0, "seed of the laser noise, restarted with every new map and teleport"))
@@ -101,7 +103,8 @@ class RobotWorldNode:
         for name, value in (("time_scale", self.time_scale), ("cmd_timeout", cmd_timeout)):
             if not value >= 0:
                 raise ConfigError(f"{name}: must be >= 0")
-        for name, value in (("scan_rate", scan_rate), ("clock_rate", clock_rate), ("resend_period", self.resend_period)):
+        for name, value in (("scan_rate", scan_rate), ("clock_rate", clock_rate), ("resend_period", self.resend_period),
+                            ("markers_rate", markers_rate)):
             if not value > 0:
                 raise ConfigError(f"{name}: must be > 0")
         ratio = 1.0 / (scan_rate * cfg.dt)
@@ -110,6 +113,8 @@ class RobotWorldNode:
         self.world = HostedWorld(cfg, seed, int(round(ratio)), cmd_timeout, lockstep)
         self.cfg = cfg
         self.scan_period = 1.0 / scan_rate
+        self.markers_every = max(1, int(round(scan_rate / markers_rate)))  # scans per marker array
+        self.scans_since_markers = 0
         self.angles = self.world.beam_angles
 
         make = self._make = n.new_message
@@ -165,7 +170,7 @@ class RobotWorldNode:
                                  (float(info.origin.position.x), float(info.origin.position.y)))
             self._start_paired()
             return
-        self.contacts_seen = 0
+        self.contacts_seen = self.scans_since_markers = 0
         self.world.load_map(grid, float(info.resolution), (float(info.origin.position.x), float(info.origin.position.y)),
                             self._obstacles_for(conversions.stamp_ns(msg.header)))
         self.node.logger.info(f"map {info.width}x{info.height} at {info.resolution:g} m: world reset (run {self.world.runs})")
@@ -195,7 +200,7 @@ class RobotWorldNode:
         if self.with_obstacles and obstacles is None:  # its obstacles are on their way
             return
         self._pending_map = self._pending_pose = None
-        self.contacts_seen = 0
+        self.contacts_seen = self.scans_since_markers = 0
         self.world.teleport(q[1], q[2], q[3])
         self.world.load_map(m[1], m[2], m[3], obstacles)
         self.node.logger.info(f"map {m[1].shape[1]}x{m[1].shape[0]} at {m[2]:g} m with the start ({q[1]:.2f}, {q[2]:.2f}, "
@@ -262,7 +267,8 @@ class RobotWorldNode:
                                                         self.cfg.laser_range, self.scan_period)
             self.pub_scan.publish(self.last_scan_msg)
             self.last_scan_wall, self.scan_stamp = time.monotonic(), stamp
-        if scan and w.ready and self.pub_markers is not None and w.world.obstacles is not None:
+        if scan and w.ready and self.pub_markers is not None and w.world.obstacles is not None \
+                and self._markers_due():
             self.pub_markers.publish(conversions.obstacle_markers(make, stamp, w.obstacles_in_map(), w.world.t,
                                                                   f["map"]))
         contact = w.contact or (w.world is not None and w.world.person_contact is not None)
@@ -277,6 +283,12 @@ class RobotWorldNode:
                 note = f"a person walked into the robot (not its fault; {self.contacts_seen} so far)"
             self.pub_collision.publish(conversions.status_report(make, stamp, "collision", problem, f["base"], note))
             self.last_collision = contact
+
+    def _markers_due(self) -> bool:
+        """Every ``markers_every``-th scan of a run, its first included (``markers_rate``)."""
+        due = self.scans_since_markers % self.markers_every == 0
+        self.scans_since_markers += 1
+        return due
 
     def _resend(self) -> None:
         """Lockstep: the unanswered scan and its odometry again (same stamps: nothing new happened)."""

@@ -335,7 +335,10 @@ class SutAdapter:
         self.worker_id = self.endpoint.worker_id
         self.publish = self.endpoint.publish
         warm_up_judge(self.problem_name, self.oracle)  # not mid-run: see its docstring
-        n.create_timer(0.02, self.idle)
+        # the next scenario starts as the last one ends or as it arrives (finish, accept); this
+        # timer only catches what those miss, so it need not wake the node 50 times a second
+        n.create_timer(float(p("idle_period", 0.2, "seconds between checks for a waiting scenario while none runs")),
+                       self.idle)
         n.logger.info(
             f"{self.worker_id}: {self.problem_name} scenarios -> {', '.join(f'{k}={v}' for k, v in self.topics.items() if v)}"
             f" (time_scale {self.time_scale:g}, stamp_clock {self.stamp_clock})"
@@ -361,6 +364,7 @@ class SutAdapter:
                 self.node.logger.info(f"scenario {sid}: invalid_test ({outcome.detail})")
                 return
         self.queue.append(Job(run_id, sid, scenario, msg, reason, valid, before=verdict))
+        self.idle()
 
     def idle(self) -> None:
         if self.job is None and self.queue:
@@ -740,6 +744,7 @@ class SutAdapter:
             outcome.metrics["contacts_not_at_fault"] = job.contacts_not_at_fault
         self.publish(job.run_id, job.scenario_id, outcome)
         self.node.logger.info(f"scenario {job.scenario_id}: {outcome.failure_kind} ({outcome.detail}) in {wall:.2f} s")
+        self.idle()
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -26,6 +26,8 @@ from .configs import NAV2_STACKS, Prepared
 from .faults import Injector
 from .suite import Entry, Suite, problem_of
 from .rows import utc_stamp
+
+STOP_SIGNALS = (signal.SIGSTOP, signal.SIGTSTP, signal.SIGCONT)  # a hang, not a death
 from .supervise import Death, Watch
 
 RESULT_SLACK_S = 60.0  # beyond the adapter's own guard, before the runner calls a scenario lost
@@ -179,6 +181,7 @@ class StackSession:
         self.moved_at: float | None = None
         self.run_no = 0
         self.deaths: list[Death] = []  # of the run in flight
+        self.signalled: list = []  # faults injected during the run in flight (their deaths belong to it)
         self._next_pulse = 0.0
         self.hung_said = False
         self.unlogged: list[tuple[int, Any]] = []  # results no recorder heard (it was dead): logged again
@@ -228,7 +231,7 @@ class StackSession:
             if self.in_flight:
                 self.deaths.append(death)
         if self.in_flight:
-            self.injector.tick(self.group, self.run_no, self.moved_at)
+            self.signalled += self.injector.tick(self.group, self.run_no, self.moved_at)
             self._watch_cmd_vel()
             quiet = now - max(self.cmd_vel_seen, self.sent_at)
             if self._cmd_sub and not self.hung_said and self.settings.hang_after > 0 and quiet > self.settings.hang_after:
@@ -264,6 +267,7 @@ class StackSession:
         sid, self.sid = self.sid, self.sid + 1
         scenario = self.problem.parse(entry.scenario)
         self.run_no, self.deaths, self.moved_at, self.hung_said = run_no, [], None, False
+        self.signalled = []
         t0, w0 = time.monotonic(), time.time_ns()
         self.sent_at = t0
         self.in_flight = True
@@ -276,6 +280,7 @@ class StackSession:
 
         try:
             outcome = self.driver.wait(self.run_id, sid, limit, stop=done)
+            self._see_signalled_deaths()
             ours = [d for d in self.deaths if d.part == "ours"]
             if outcome is None:
                 if ours:
@@ -295,6 +300,20 @@ class StackSession:
         finally:
             self.in_flight = False
         return outcome, sid, time.monotonic() - t0, w0, list(self.deaths)
+
+    def _see_signalled_deaths(self, bound_s: float = 5.0) -> None:
+        """A process we killed during the run, whose answer came first: its death belongs to this
+        run, so wait (bounded) until the watch has seen it, and take any death the last pulse missed."""
+        lethal = [f for f in self.signalled if f.pid is not None and f.signal not in STOP_SIGNALS]
+        deadline = time.monotonic() + bound_s
+        while True:
+            for death in self.watch.poll():
+                self.event(death)
+                self.deaths.append(death)
+            seen = {d.group for d in self.deaths} | {d.process for d in self.deaths}
+            if all(f.target in seen for f in lethal) or time.monotonic() >= deadline:
+                return
+            self.node.spin_until(lambda: False, 0.05)
 
     # --- recovery ---------------------------------------------------------------------------------
     def between_runs(self) -> list[dict]:

@@ -325,7 +325,8 @@ def _fake_rclpy(monkeypatch):
     class ExternalShutdownException(Exception):
         pass
 
-    state = {"ok": False, "init_args": None, "shutdowns": 0, "topics": {}, "acked_waits": 0, "signal_options": None}
+    state = {"ok": False, "init_args": None, "shutdowns": 0, "topics": {}, "acked_waits": 0, "signal_options": None,
+             "event_callbacks": []}
 
     class QoSProfile:
         def __init__(self, *, history, depth, reliability, durability):
@@ -394,13 +395,16 @@ def _fake_rclpy(monkeypatch):
             assert descriptor.dynamic_typing is True
             return Parameter(name, value=self.params.get(name, value))
 
-        def create_publisher(self, msg_type, topic, qos_profile, *, callback_group=None):
+        def create_publisher(self, msg_type, topic, qos_profile, *, callback_group=None, event_callbacks=None,
+                             qos_overriding_options=None):
             assert isinstance(qos_profile, QoSProfile)
+            state["event_callbacks"].append(event_callbacks)
             return Pub(self.resolve_topic_name(topic))
 
         def create_subscription(self, msg_type, topic, callback, qos_profile, *, callback_group=None,
                                 event_callbacks=None, qos_overriding_options=None, raw=False):
             fqn = self.resolve_topic_name(topic)
+            state["event_callbacks"].append(event_callbacks)
             state["topics"].setdefault(fqn, []).append((lambda m: self.pending.append((callback, m)), raw))
             return pytypes.SimpleNamespace(topic_name=fqn)
 
@@ -464,7 +468,12 @@ def _fake_rclpy(monkeypatch):
         "rosidl_runtime_py.utilities": pytypes.ModuleType("rosidl_runtime_py.utilities"),
         "rclpy.serialization": pytypes.ModuleType("rclpy.serialization"),
         "rclpy.signals": pytypes.ModuleType("rclpy.signals"), "rclpy.duration": pytypes.ModuleType("rclpy.duration"),
+        "rclpy.event_handler": pytypes.ModuleType("rclpy.event_handler"),
     }
+    for kind in ("PublisherEventCallbacks", "SubscriptionEventCallbacks"):  # Jazzy's signature
+        setattr(mods["rclpy.event_handler"], kind, type(kind, (), {"__init__": lambda self, *, use_default_callbacks=True,
+                                                                     **callbacks: setattr(
+            self, "use_default_callbacks", use_default_callbacks)}))
     mods["rclpy.signals"].SignalHandlerOptions = enum.Enum("SignalHandlerOptions", "NO SIGINT SIGTERM ALL")
     mods["rclpy.duration"].Duration = lambda *, seconds=0, nanoseconds=0: pytypes.SimpleNamespace(
         nanoseconds=int(seconds * 1e9) + nanoseconds)
@@ -498,6 +507,10 @@ def test_rclpy_adapter_against_a_fake_jazzy_api(monkeypatch):
     node.create_subscription(STRING, "/chat", lambda m: got.append(m.data), DEFAULT)
     node.create_subscription(STRING, "chat", lambda d, t: got.append((d, t > 0)), DEFAULT, raw=True)
     assert pub.subscription_count() == 2 and pub.topic == "/chat"
+    # no QoS event handlers: rclpy's default ones are waitables rebuilt into every wait (issue 58)
+    assert [type(e).__name__ for e in state["event_callbacks"]] == [
+        "PublisherEventCallbacks", "SubscriptionEventCallbacks", "SubscriptionEventCallbacks"]
+    assert not any(e.use_default_callbacks for e in state["event_callbacks"])
     pub.publish(node.new_message(STRING, data="hi"))
     pub.publish_raw(bytearray(b"\x00\x01\x00\x00"))
     node.spin_once(0.0)

@@ -149,6 +149,17 @@ def missing_messages(module_file: str | Path | None = None) -> str:
 # QoS mapping (pure data, testable without rclpy)
 
 
+def no_event_handlers(publisher: bool):
+    """No QoS event handlers on our endpoints. rclpy's defaults (incompatible QoS and type, each
+    a waitable on the executor) are rebuilt into the wait set on every wakeup: with ~20 endpoints a
+    node's wait set triples, and at Nav2's rates that was most of our nodes' CPU (issue 58,
+    py-spy). Incompatible QoS shows in ``ros2 topic info -v`` and in the adapter's own checks
+    ("nobody publishes ...")."""
+    from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+
+    return (PublisherEventCallbacks if publisher else SubscriptionEventCallbacks)(use_default_callbacks=False)
+
+
 def qos_profile_kwargs(qos: Qos) -> dict[str, Any]:
     """Policy names/values for ``rclpy.qos.QoSProfile``, as strings (no rclpy needed)."""
     return {
@@ -305,7 +316,8 @@ class RclpyNode(Node):
         return cls
 
     def create_publisher(self, typename: str, topic: str, qos: Qos) -> Publisher:
-        pub = self._node.create_publisher(self._msg_class(typename), topic, to_rclpy_qos(qos))
+        pub = self._node.create_publisher(self._msg_class(typename), topic, to_rclpy_qos(qos),
+                                          event_callbacks=no_event_handlers(publisher=True))
         self._publishers.append((qos, pub))
         return _RclpyPublisher(pub, typename, pub.topic_name, qos)
 
@@ -318,7 +330,7 @@ class RclpyNode(Node):
         deliver = self.input_guard().wrap(self.resolve_topic_name(topic), callback, raw,
                                           lambda data: deserialize_message(data, cls))
         sub = self._node.create_subscription(cls, topic, lambda data: deliver(data, time.time_ns()),
-                                             to_rclpy_qos(qos), raw=True)
+                                             to_rclpy_qos(qos), raw=True, event_callbacks=no_event_handlers(publisher=False))
         return _RclpySubscription(sub, typename, sub.topic_name, qos, raw)
 
     def create_timer(self, period_s: float, callback: Callable[[], None]) -> Timer:
