@@ -24,11 +24,11 @@ from typing import Any, Callable
 
 from .configs import NAV2_STACKS, Prepared
 from .faults import Injector
-from .suite import Entry, Suite, problem_of
 from .rows import utc_stamp
+from .suite import Entry, Suite, problem_of
+from .supervise import Death, Watch
 
 STOP_SIGNALS = (signal.SIGSTOP, signal.SIGTSTP, signal.SIGCONT)  # a hang, not a death
-from .supervise import Death, Watch
 
 RESULT_SLACK_S = 60.0  # beyond the adapter's own guard, before the runner calls a scenario lost
 MOVING_MPS = 0.05  # a run's robot moves once its odometry says this fast (injected faults wait for it)
@@ -226,10 +226,7 @@ class StackSession:
         if now < self._next_pulse:
             return
         self._next_pulse = now + 0.2
-        for death in self.watch.poll():
-            self.event(death)
-            if self.in_flight:
-                self.deaths.append(death)
+        self._take_deaths()
         if self.in_flight:
             self.signalled += self.injector.tick(self.group, self.run_no, self.moved_at)
             self._watch_cmd_vel()
@@ -301,15 +298,20 @@ class StackSession:
             self.in_flight = False
         return outcome, sid, time.monotonic() - t0, w0, list(self.deaths)
 
+    def _take_deaths(self) -> None:
+        """What the watch saw die or hang since it last looked: said, logged, and the run's if one is on."""
+        for death in self.watch.poll():
+            self.event(death)
+            if self.in_flight:
+                self.deaths.append(death)
+
     def _see_signalled_deaths(self, bound_s: float = 5.0) -> None:
         """A process we killed during the run, whose answer came first: its death belongs to this
         run, so wait (bounded) until the watch has seen it, and take any death the last pulse missed."""
         lethal = [f for f in self.signalled if f.pid is not None and f.signal not in STOP_SIGNALS]
         deadline = time.monotonic() + bound_s
         while True:
-            for death in self.watch.poll():
-                self.event(death)
-                self.deaths.append(death)
+            self._take_deaths()
             seen = {d.group for d in self.deaths} | {d.process for d in self.deaths}
             if all(f.target in seen for f in lethal) or time.monotonic() >= deadline:
                 return
