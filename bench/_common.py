@@ -27,6 +27,14 @@ def write_result(name: str, figures: dict) -> Path:
     return path
 
 
+def report(name: str, tag: str, figures: dict) -> Path:
+    """Write ``<name>[_<tag>].json`` (``write_result``) and print the figures and where they went."""
+    path = write_result(name + (f"_{tag}" if tag else ""), figures)
+    print(figures)
+    print(f"written: {path}")
+    return path
+
+
 def read_rows(path: Path) -> list[dict]:
     """Every row of a JSON-lines results file, oldest first (none when it does not exist yet)."""
     return [json.loads(line) for line in path.read_text().splitlines() if line.strip()] if path.exists() else []

@@ -21,7 +21,7 @@ from collections import defaultdict
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import write_result  # noqa: E402
+from _common import report  # noqa: E402
 
 OURS = {"sim_nodes.sut_adapter": "sut_adapter", "sim_nodes.robot_world": "robot_world",
         "ambiegen_ros.nodes.recorder": "recorder", "ambiegen_ros rerun": "runner", "ambiegen_ros compare": "runner"}
@@ -92,9 +92,7 @@ def main(argv: list[str] | None = None) -> int:
     nav2 = sum(v for k, v in shares.items() if k.startswith("nav2/"))
     figures = {"wall_s": round(wall, 1), "ours_cores": round(ours, 3), "nav2_cores": round(nav2, 3),
                "runner_cores": shares.get("runner", 0.0), "shares": shares, "cpus": os.cpu_count()}
-    path = write_result("nav2_cpu" + (f"_{args.tag}" if args.tag else ""), figures)
-    print(figures)
-    print(f"written: {path}")
+    report("nav2_cpu", args.tag, figures)
     return 0
 
 

@@ -26,7 +26,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
-from _common import write_result  # noqa: E402
+from _common import report  # noqa: E402
 from nav2_cpu import core_shares, cpu_seconds, processes  # noqa: E402
 
 OURS = ("sut_adapter", "robot_world", "recorder")
@@ -46,8 +46,21 @@ def nav2_rate_stack(seed: int, tag: str, profile: str | None, config_file: str |
     ]
 
 
+def ours(pid: int) -> bool:
+    """Is ``pid`` below this process (a node of this bench, not of another session on the machine)?"""
+    me = os.getpid()
+    while pid > 1:
+        try:
+            pid = int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, IndexError, ValueError):
+            return False
+        if pid == me:
+            return True
+    return False
+
+
 class Sampler(threading.Thread):
-    """CPU seconds of each of the session's processes, read from /proc every ``every`` seconds."""
+    """CPU seconds of each of this bench's processes, read from /proc every ``every`` seconds."""
 
     def __init__(self, every: float = 2.0):
         super().__init__(daemon=True)
@@ -59,7 +72,7 @@ class Sampler(threading.Thread):
     def run(self) -> None:
         while not self.stop.is_set():
             for pid, name in processes().items():
-                used = cpu_seconds(pid)
+                used = cpu_seconds(pid) if pid in self.names or ours(pid) else None
                 if used is not None:
                     self.first.setdefault(pid, used)
                     self.last[pid], self.names[pid] = used, name
@@ -109,9 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     figures = {"transport": backend, "scenarios": len(suite.entries), "wall_s": round(wall, 1),
                "ours_cores": round(ours, 3), "shares": shares, "verdicts": dict(verdicts),
                "stand_in": "nd_driver in Nav2's place (10 Hz commands)", "cpus": os.cpu_count()}
-    path = write_result("ours_cpu" + (f"_{args.tag}" if args.tag else ""), figures)
-    print(figures)
-    print(f"written: {path}")
+    report("ours_cpu", args.tag, figures)
     return 0
 
 

@@ -11,7 +11,9 @@ In:
   held for at most ``cmd_timeout`` simulated seconds.
 
 Out (stamps are simulated time):
-* ``clock_topic`` (``rosgraph_msgs/Clock``, best effort, ``clock_rate`` Hz of wall time; '' = none);
+* ``clock_topic`` (``rosgraph_msgs/Clock``, best effort, at most ``clock_rate`` Hz of wall time; '' =
+  none): each new simulated time once (at time scale 1, 50 Hz: the step rate), a time that has not
+  moved only once a second (for a node that joins while the world waits);
 * ``tf`` (``/tf`` in the root namespace, ``/<ns>/tf`` in a namespace, as Nav2 remaps it):
   ``map_frame -> odom_frame`` (identity) and ``odom_frame -> base_frame`` (ground truth)
   every step, also before the first map (the robot at the origin, or at the last initial pose:
@@ -58,6 +60,7 @@ CLOCK = Qos(reliable=False, transient_local=False, depth=1)  # rclcpp's ClockQoS
 TF = Qos(reliable=True, transient_local=False, depth=100)  # tf2_ros' broadcaster
 TF_STATIC = Qos(reliable=True, transient_local=True, depth=1)  # tf2_ros' static broadcaster
 MAX_STEPS_PER_TICK = 200  # a world behind its schedule catches up this many steps per tick at most
+CLOCK_REPEAT_S = 1.0  # wall seconds between two /clock messages of a time that has not moved
 
 
 class RobotWorldNode:
@@ -140,6 +143,7 @@ class RobotWorldNode:
         self.start_ns = n.now_ns()  # simulated time 0 on the stamps: the wall time the world started
         self.wall0, self.k0 = time.monotonic(), 0  # the pacing anchor (free-running)
         self.last_scan_wall = 0.0
+        self.clock_sent, self.clock_sent_wall = -1, 0.0  # the last /clock: its time, when it went
         self.last_scan_msg: Any = None
         self.scan_stamp = -1
         self.last_odom_msg: Any = None
@@ -236,7 +240,16 @@ class RobotWorldNode:
         else:
             self._advance(MAX_STEPS_PER_TICK)
         if self.pub_clock is not None:
-            self.pub_clock.publish(self._make("rosgraph_msgs/msg/Clock", clock=conversions.stamp(self._make, self._stamp())))
+            self._publish_clock()
+
+    def _publish_clock(self) -> None:
+        """A new simulated time; the same one again only after ``CLOCK_REPEAT_S`` (every Nav2 node
+        hears /clock, so a repeat costs a send to each; the time it carries is what they need)."""
+        stamp, now = self._stamp(), time.monotonic()
+        if stamp == self.clock_sent and now - self.clock_sent_wall < CLOCK_REPEAT_S:
+            return
+        self.clock_sent, self.clock_sent_wall = stamp, now
+        self.pub_clock.publish(self._make("rosgraph_msgs/msg/Clock", clock=conversions.stamp(self._make, stamp)))
 
     def _advance(self, steps: int) -> None:
         """Up to ``steps`` steps, each publishing odometry and TF (and a scan when one is due)."""

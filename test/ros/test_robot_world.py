@@ -95,6 +95,26 @@ def test_the_world_alone_speaks_nav2s_topics(graph):
     assert all(b > a for a, b in zip(stamps, stamps[1:])), "odometry stamps must increase"
 
 
+def test_the_clock_carries_each_simulated_time_once(graph):
+    """At real time the world ticks at 100 Hz and steps at 50: a tick that did not step sends no
+    /clock (every Nav2 node hears it; issue 58). Counted against the odometry, one per step."""
+    procs, node = graph()
+    procs.start("world", "sim_nodes.robot_world", time_scale=1.0, cmd_timeout=0.0)
+    clocks: list[int] = []
+    odoms: list[int] = []
+    node.create_subscription("rosgraph_msgs/msg/Clock", "/clock", lambda m: clocks.append(m.clock.sec * 10**9 + m.clock.nanosec),
+                             Qos(reliable=False, depth=200))
+    node.create_subscription("nav_msgs/msg/Odometry", "/odom", lambda m: odoms.append(conversions.stamp_ns(m.header)),
+                             Qos(reliable=False, depth=200))
+    assert node.spin_until(lambda: len(clocks) > 5 and len(odoms) > 5, 120), procs.logs()
+    c0, o0 = len(clocks), len(odoms)
+    assert node.spin_until(lambda: len(odoms) >= o0 + 150, 120), procs.logs()
+    span = clocks[c0 - 1:]
+    assert all(b > a for a, b in zip(span, span[1:])), "a /clock message repeated a time"
+    assert len(span) - 1 <= len(odoms) - o0 + 2, (len(span), len(odoms) - o0)
+    assert span[-1] - span[0] >= 100 * 20_000_000  # and the time it carries moved on with the steps
+
+
 def test_the_nd_stack_behind_the_adapter_gives_the_in_process_verdicts_on_a_loaded_machine(graph):
     """Maps of ``bench/nd_stack.py``'s failing setting (``safety_dist`` 0.3 m), two of each verdict, plus a map
     whose reference fails (an invalid test, never sent), through ``robot_world`` (lockstep) +
