@@ -35,6 +35,15 @@ MOVING_MPS = 0.05  # a run's robot moves once its odometry says this fast (injec
 GONE_TIMEOUT_S = 60.0  # a killed part's endpoints leave the graph within its lease (DDS: about 10 s)
 
 
+def last_words(log: Path, width: int = 300) -> str:
+    """The last non-empty line of a process's log (where a node says why it stopped)."""
+    try:
+        lines = [line.strip() for line in log.read_text(errors="replace").splitlines() if line.strip()]
+    except OSError:
+        return "(no log)"
+    return lines[-1][:width] if lines else "(an empty log)"
+
+
 class StackStopped(Exception):
     """The runs of a configuration stopped: the stack did not come up or back, or kept failing to answer."""
 
@@ -68,8 +77,9 @@ class SuiteDriver:
         self.pub_config.publish(self.conv.run_config_message(self.node.new_message, self.node.now_ns(), run_id, config,
                                                              __version__))
 
-    def wait_matched(self, count: int, timeout: float) -> bool:
-        return self.node.spin_until(lambda: self.pub.subscription_count() >= count, timeout)
+    def wait_matched(self, count: int, timeout: float, stop: Callable[[], bool] = lambda: False) -> bool:
+        return self.node.spin_until(lambda: self.pub.subscription_count() >= count or stop(), timeout) \
+            and self.pub.subscription_count() >= count
 
     def send(self, run_id: str, sid: int, scenario: Any, seed: int = 0) -> None:
         meta = self.conv.ScenarioMeta(run_id, sid, seed=seed)
@@ -239,8 +249,24 @@ class StackSession:
 
     # --- the runs ---------------------------------------------------------------------------------
     def ready(self) -> bool:
-        """The adapter and the recorder take scenarios (a bound, not a wait: it ends once they match)."""
-        return self.driver.wait_matched(2, self.settings.ready_timeout)
+        """The adapter and the recorder take scenarios (a bound, not a wait: it ends once they match).
+        A process that dies meanwhile stops the configuration at once, with its last words (a node
+        that refuses its parameters says why in one line; waiting out the bound would hide it)."""
+        dead: list[Death] = []
+
+        def died() -> bool:
+            dead.extend(self.watch.poll())
+            return bool(dead)
+
+        if self.driver.wait_matched(2, self.settings.ready_timeout, stop=died):
+            return True
+        if not dead:
+            return False
+        for death in dead:
+            self.event(death)
+        first = dead[0]
+        raise StackStopped(f"[{self.prepared.config.label}] {first.words()} while the stack came up: "
+                           f"{last_words(self.dir / 'logs' / f'{first.group}.log')!r} (logs: {self.dir / 'logs'})")
 
     def limit(self, entry: Entry) -> float:
         """Wall seconds the runner waits for an answer: twice the oracle's time limit for the route at
