@@ -32,6 +32,7 @@ STOP_SIGNALS = (signal.SIGSTOP, signal.SIGTSTP, signal.SIGCONT)  # a hang, not a
 
 RESULT_SLACK_S = 60.0  # beyond the adapter's own guard, before the runner calls a scenario lost
 MOVING_MPS = 0.05  # a run's robot moves once its odometry says this fast (injected faults wait for it)
+DISCOVERY_S = 2.0  # a new participant has heard the others on the domain by then (SPDP on one host)
 GONE_TIMEOUT_S = 60.0  # a killed part's endpoints leave the graph within its lease (DDS: about 10 s)
 
 
@@ -164,8 +165,6 @@ class StackSession:
         if settings.stack == "bringup":
             self.argv["nav2"] = ["ros2", "launch", "nav2_bringup", "navigation_launch.py", "use_sim_time:=true",
                                  "autostart:=true", "use_composition:=False", f"params_file:={prepared.path}"]
-        for name, argv in self.argv.items():
-            self.group.start_argv(name, argv)
         if settings.stack == "external":
             say(f"start your Nav2 now, in ROS domain {env.get('ROS_DOMAIN_ID', '0')}: ros2 launch nav2_bringup "
                 f"navigation_launch.py use_sim_time:=true params_file:={prepared.path}")
@@ -177,6 +176,9 @@ class StackSession:
         self.node = create_node("ambiegen_trials", argv=[])
         self.problem = problem_of(suite)
         self.driver = SuiteDriver(self.node, self.problem)
+        self._clean_graph(env.get("ROS_DOMAIN_ID", "0"))
+        for name, argv in self.argv.items():
+            self.group.start_argv(name, argv)
         self.pub_events = self.node.create_publisher(topics.STACK_EVENTS_TYPE, topics.STACK_EVENTS, STREAM)
         self.node.create_subscription("nav_msgs/msg/Odometry", "/odom", self._on_odom, STREAM)
         self.cmd_vel_seen = time.monotonic()
@@ -246,6 +248,23 @@ class StackSession:
                 death = Death("the stack", "stack", f"stopped commanding: no /cmd_vel for {quiet:.0f} s", "cmd_vel")
                 self.event(death)
                 self.deaths.append(death)
+
+    def _clean_graph(self, domain: str) -> None:
+        """Nothing else on the domain takes scenarios before our adapter and recorder start: a scenario
+        would reach the other one, not ours. The remains of a killed session leave with their lease
+        (about 10 s, waited for); a live session stays, and then the command stops with one line."""
+        taken = self.driver.pub.subscription_count
+        self.node.spin_until(lambda: taken() > 0, DISCOVERY_S)  # what is there shows up by then
+        if taken() == 0:
+            return
+        self.say(f"[{self.prepared.config.label}] waiting for {taken()} reader(s) of scenarios on ROS domain {domain} "
+                 f"to leave (another session's adapter or recorder, or what remains of a killed one)")
+        if self.node.spin_until(lambda: taken() == 0, GONE_TIMEOUT_S):
+            return
+        self.node.shutdown()
+        raise StackStopped(f"[{self.prepared.config.label}] {taken()} reader(s) of another session take scenarios "
+                           f"on ROS domain {domain} (an adapter or recorder still running?): stop it, or give this "
+                           f"command its own --domain-id")
 
     # --- the runs ---------------------------------------------------------------------------------
     def ready(self) -> bool:

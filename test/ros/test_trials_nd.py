@@ -132,3 +132,47 @@ def test_a_node_that_refuses_its_params_stops_the_configuration_with_its_own_wor
     assert "sut_adapter exited with code 2 while the stack came up" in said, said[-3000:]
     assert "needs the rclpy backend" in said
     assert not results.exists() or TrialLog(results).rows() == []
+
+
+def test_another_sessions_reader_is_waited_out_before_the_stack_starts(tmp_path, suite_file, ros_domain):
+    """An adapter of another session (or what remains of a killed one, until its lease ends) that
+    takes scenarios on the domain: the command says so and waits for it to leave before its own
+    nodes start, so the scenarios reach our adapter and recorder, not the other one. Every run is
+    answered, with the full model's verdict."""
+    from ambiegen_ros.ros import topics
+    from ambiegen_ros.ros.qos import STREAM
+    from ambiegen_ros.ros.transport import create_node
+
+    env = {k: v for k, v in os.environ.items() if k != "AMBIEGEN_TRANSPORT"}
+    env.update(ROS_DOMAIN_ID=str(ros_domain), PYTHONUNBUFFERED="1")
+    other = subprocess.Popen([sys.executable, "-m", "sim_nodes.sut_adapter", "--ros-args", "-p", "problem:=robot",
+                              "-p", "worker_id:=other_session"], env=env, cwd=REPO, stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL)
+    os.environ["ROS_DOMAIN_ID"] = str(ros_domain)
+    node = create_node("probe", argv=[])
+    try:
+        pub = node.create_publisher(topics.SCENARIO_TYPES["robot"], topics.scenarios("robot"), STREAM)
+        assert node.spin_until(lambda: pub.subscription_count() >= 1, 120), "the other adapter never showed up"
+    finally:
+        node.shutdown()
+    results = tmp_path / "trials.jsonl"
+    run = subprocess.Popen([sys.executable, "-m", "ambiegen_ros", "rerun", str(suite_file), "--stack", "nd", "--config",
+                            CONFIG, "--results", str(results), "--repeat", "1", "--domain-id", str(ros_domain)],
+                           cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    said = []
+    try:
+        for line in run.stdout:
+            said.append(line)
+            if "reader(s) of scenarios on ROS domain" in line:
+                other.kill()  # its reader stays on the graph until its lease ends: waited out too
+                break
+        said += run.stdout.readlines()
+        assert run.wait(timeout=600) == 0, "".join(said)[-4000:]
+    finally:
+        for proc in (other, run):
+            if proc.poll() is None:
+                proc.kill()
+    assert any("waiting for 1 reader(s)" in line for line in said), "".join(said)[-3000:]
+    rows = TrialLog(results).rows()
+    expected = expected_verdicts(load_suite([str(suite_file)], CONFIG))
+    assert [r["verdict"] for r in rows] == [expected[e] for e in expected], [r["detail"][:100] for r in rows]
