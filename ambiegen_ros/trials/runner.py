@@ -139,7 +139,7 @@ def _run_configuration(suite: Suite, p: Prepared, todo: list[tuple[int, Entry]],
             repeat = done[entry.key] + 1
             events = [{"process": d.process, "part": d.part, "what": d.what} for d in deaths]
             row = row_of(outcome, entry, suite, p, settings, repeat, session.run_id, sid, bag, wall, w0,
-                         {**extra, "events": events, "restarts": before + restarts})
+                         {**extra, "events": events, "restarts": before + restarts, "cpu": session.cpu})
             log.append(row)
             clock["count"] += 1
             explained = any(d.part == "ours" for d in deaths) and all(r["ok"] for r in restarts)

@@ -26,7 +26,7 @@ from .configs import NAV2_STACKS, Prepared
 from .faults import Injector
 from .rows import utc_stamp
 from .suite import Entry, Suite, problem_of
-from .supervise import Death, Watch
+from .supervise import Death, Watch, core_shares, cpu_by_part
 
 STOP_SIGNALS = (signal.SIGSTOP, signal.SIGTSTP, signal.SIGCONT)  # a hang, not a death
 
@@ -197,6 +197,7 @@ class StackSession:
         self._next_pulse = 0.0
         self.hung_said = False
         self.unlogged: list[tuple[int, Any]] = []  # results no recorder heard (it was dead): logged again
+        self.cpu: dict[str, float | None] = {}  # the last run's cores: ours (world, adapter, recorder), the stack's
 
     # --- watching -------------------------------------------------------------------------------
     def _on_odom(self, msg: Any) -> None:
@@ -320,8 +321,10 @@ class StackSession:
             self.pulse()
             return self._adapter_gone()
 
+        cpu0 = cpu_by_part(self.group)
         try:
             outcome = self.driver.wait(self.run_id, sid, limit, stop=done)
+            self.cpu = core_shares(cpu0, cpu_by_part(self.group), time.monotonic() - t0)
             self._see_signalled_deaths()
             ours = [d for d in self.deaths if d.part == "ours"]
             if outcome is None:

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 OURS = ("robot_world", "sut_adapter", "recorder")
+TICKS = os.sysconf("SC_CLK_TCK")
 LAUNCH_DIED = re.compile(r"\[ERROR\] \[(?P<process>[A-Za-z0-9_./-]+?)-\d+\]: process has died "
                          r"\[pid (?P<pid>\d+), exit code (?P<code>-?\d+)")
 
@@ -87,6 +88,38 @@ def descendants(pid: int) -> list[int]:
             out += kids
             todo += kids
     return out
+
+
+def cpu_seconds(pid: int) -> float | None:
+    """CPU time (user + system) a process has used so far, from ``/proc/<pid>/stat``."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / TICKS
+    except (OSError, IndexError, ValueError):
+        return None
+
+
+def cpu_by_part(group: Any) -> dict[int, tuple[str, float]]:
+    """pid -> (part, CPU seconds) of every process of a session (each launch's servers included)."""
+    out = {}
+    for name, proc in list(group.procs.items()):
+        if proc.poll() is not None:
+            continue
+        for pid in [proc.pid, *descendants(proc.pid)]:
+            used = cpu_seconds(pid)
+            if used is not None:
+                out[pid] = (part_of(name), used)
+    return out
+
+
+def core_shares(before: dict[int, tuple[str, float]], after: dict[int, tuple[str, float]],
+                wall: float) -> dict[str, float]:
+    """Cores each part used between two readings (a process alive at both), over the wall seconds."""
+    used = {"ours": 0.0, "stack": 0.0}
+    for pid, (part, seconds) in after.items():
+        if pid in before and wall > 0:
+            used[part] = used.get(part, 0.0) + seconds - before[pid][1]
+    return {f"{part}_cores": round(cpu / wall, 3) if wall > 0 else None for part, cpu in used.items()}
 
 
 def stopped(pid: int) -> bool:

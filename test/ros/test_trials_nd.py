@@ -106,6 +106,8 @@ def test_compare_runs_each_configuration_and_draws_what_changed(tmp_path, suite_
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     rows = TrialLog(results).rows()
     assert Counter(r["label"] for r in rows) == {"nd": 3, "wide": 3}
+    # what each run cost: the cores of our nodes and of the stack while it was on (from /proc)
+    assert all(r["cpu"]["ours_cores"] > 0 and r["cpu"]["stack_cores"] > 0 for r in rows), [r["cpu"] for r in rows]
     assert all(r["world"] == {"fov_deg": 360.0, "beams": 361} for r in rows if r["label"] == "wide")
     assert all(r["world"] == {} for r in rows if r["label"] == "nd")
     suite = load_suite([str(suite_file)], CONFIG)
