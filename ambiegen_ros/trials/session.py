@@ -262,6 +262,7 @@ class StackSession:
                  f"to leave (another session's adapter or recorder, or what remains of a killed one)")
         if self.node.spin_until(lambda: taken() == 0, GONE_TIMEOUT_S):
             return
+        self._interrupted()
         self.node.shutdown()
         raise StackStopped(f"[{self.prepared.config.label}] {taken()} reader(s) of another session take scenarios "
                            f"on ROS domain {domain} (an adapter or recorder still running?): stop it, or give this "
@@ -280,6 +281,7 @@ class StackSession:
 
         if self.driver.wait_matched(2, self.settings.ready_timeout, stop=died):
             return True
+        self._interrupted()
         if not dead:
             return False
         for death in dead:
@@ -299,6 +301,12 @@ class StackSession:
         k = self.settings.time_scale if self.settings.stack in NAV2_STACKS else 1.0
         start = 600.0 if self.settings.stack == "external" else self.settings.start_timeout
         return 2 * RobotSimConfig().time_limit(route, self.prepared.speed) / k + start + RESULT_SLACK_S
+
+    def _interrupted(self) -> None:
+        """A Ctrl-C (or SIGTERM) stops the node's spinning: the wait that ended is no lost run, and no
+        stack that failed to come up; the command stops (the runs made so far are in the results)."""
+        if not self.node.ok():
+            raise KeyboardInterrupt
 
     def _adapter_gone(self) -> bool:
         return any(d.process == "sut_adapter" for d in self.deaths)
@@ -324,6 +332,7 @@ class StackSession:
         cpu0 = cpu_by_part(self.group)
         try:
             outcome = self.driver.wait(self.run_id, sid, limit, stop=done)
+            self._interrupted()
             self.cpu = core_shares(cpu0, cpu_by_part(self.group), time.monotonic() - t0)
             self._see_signalled_deaths()
             ours = [d for d in self.deaths if d.part == "ours"]
@@ -423,6 +432,7 @@ class StackSession:
         self.group.start_argv(name, argv)
         self.watch.forget(name)
         ok = self.node.spin_until(lambda: self._shows_up(name), self.settings.ready_timeout)
+        self._interrupted()
         took = time.monotonic() - t0
         if ok and name == "recorder":  # what the dead recorder did not hear: its own death, the run's result
             self.relog(why)

@@ -178,3 +178,32 @@ def test_another_sessions_reader_is_waited_out_before_the_stack_starts(tmp_path,
     rows = TrialLog(results).rows()
     expected = expected_verdicts(load_suite([str(suite_file)], CONFIG))
     assert [r["verdict"] for r in rows] == [expected[e] for e in expected], [r["detail"][:100] for r in rows]
+
+
+def test_ctrl_c_stops_the_command_and_records_no_lost_run(tmp_path, suite_file, ros_domain):
+    """SIGINT while a run is on (sent once the first run is in the results): the command stops with
+    status 130 and says how to resume; the results hold the finished runs only, none filed as lost."""
+    import signal as signals
+
+    results = tmp_path / "trials.jsonl"
+    env = {k: v for k, v in os.environ.items() if k != "AMBIEGEN_TRANSPORT"}
+    env["PYTHONUNBUFFERED"] = "1"
+    run = subprocess.Popen([sys.executable, "-m", "ambiegen_ros", "rerun", str(suite_file), "--stack", "nd", "--config",
+                            CONFIG, "--results", str(results), "--repeat", "3", "--domain-id", str(ros_domain)],
+                           cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    said = []
+    try:
+        for line in run.stdout:
+            said.append(line)
+            if line.startswith("[1/9]"):
+                run.send_signal(signals.SIGINT)  # the second run has just gone out
+                break
+        said += run.stdout.readlines()
+        assert run.wait(timeout=300) == 130, "".join(said)[-3000:]
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert any("interrupted; the runs made are in" in line for line in said), "".join(said)[-2000:]
+    rows = TrialLog(results).rows()
+    assert 1 <= len(rows) <= 2 and all(r["failure_kind"] not in ("sim_timeout", "error") for r in rows), \
+        [(r["scenario_name"], r["verdict"]) for r in rows]
