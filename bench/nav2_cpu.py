@@ -23,10 +23,12 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import report  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from ambiegen_ros.trials.supervise import cpu_seconds  # noqa: E402  (one reading of /proc for both)
+
 OURS = {"sim_nodes.sut_adapter": "sut_adapter", "sim_nodes.robot_world": "robot_world",
         "ambiegen_ros.nodes.recorder": "recorder", "ambiegen_ros rerun": "runner", "ambiegen_ros compare": "runner"}
 NAV2_LIB = "/lib/nav2_"
-TICKS = os.sysconf("SC_CLK_TCK")
 
 
 def processes() -> dict[int, str]:
@@ -50,13 +52,6 @@ def processes() -> dict[int, str]:
                 out[int(entry.name)] = f"nav2/{node}"
     return out
 
-
-def cpu_seconds(pid: int) -> float | None:
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    except OSError:
-        return None
-    return (int(fields[11]) + int(fields[12])) / TICKS  # utime, stime
 
 
 def core_shares(first: dict[int, float], last: dict[int, float], names: dict[int, str], wall: float) -> dict[str, float]:
