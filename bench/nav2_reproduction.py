@@ -1,6 +1,6 @@
 """How often each reported Nav2 failure reproduces, from the rows of ``ambiegen rerun`` (issue 56).
 
-    python bench/nav2_reproduction.py RESULTS.jsonl --label jazzy SUITE.json [SUITE.json ...] [--tag TAG]
+    python bench/nav2_reproduction.py RESULTS.jsonl[+MORE.jsonl] --label jazzy SUITE.json [SUITE.json ...] [--tag TAG]
 
 Per scenario of the suites: the runs on ``--label``, the failures by kind (k of n), and the mechanism
 of each failure (a collision with a person, a wall contact, Nav2 giving up). Then the distinct-failure
@@ -35,7 +35,7 @@ def mechanism(row: dict) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("results")
+    ap.add_argument("results", help="a results file of rerun/compare; several joined with +")
     ap.add_argument("suite", nargs="+")
     ap.add_argument("--label", default="jazzy")
     ap.add_argument("--config", default=None)
@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     suite = load_suite(args.suite, args.config)
     problem = problem_of(suite)
     names = suite.names()
-    rows = [r for r in rows_of(args.results, [args.label], set(names)) if counted(r)]
+    rows = [r for path in args.results.split("+") for r in rows_of(path, [args.label], set(names)) if counted(r)]
     every, reproducing = DistinctFailures(), DistinctFailures()
     table, per = [], {}
     hits = []
