@@ -15,6 +15,7 @@ import subprocess
 import sys
 from collections import Counter
 from pathlib import Path
+from typing import Any, Callable
 
 import pytest
 from mcap.reader import make_reader
@@ -43,6 +44,26 @@ def ambiegen(*args: str, timeout: float = 600) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if k != "AMBIEGEN_TRANSPORT"}
     return subprocess.run([sys.executable, "-m", "ambiegen_ros", *args], capture_output=True, text=True, cwd=REPO,
                           env=env, timeout=timeout)
+
+
+def rerun_acting(args: list[str], env: dict, when: Callable[[str], bool], act: Callable[[Any], None],
+                 timeout: float = 600) -> tuple[int, list[str]]:
+    """``ambiegen rerun ARGS`` with its output read as it comes: ``act(process)`` once, on the first
+    line ``when`` accepts (an event, not a time). Returns its exit status and every line it said."""
+    run = subprocess.Popen([sys.executable, "-m", "ambiegen_ros", "rerun", *args], cwd=REPO, env=env,
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    said: list[str] = []
+    try:
+        for line in run.stdout:
+            said.append(line)
+            if when(line):
+                act(run)
+                break
+        said += run.stdout.readlines()
+        return run.wait(timeout=timeout), said
+    finally:
+        if run.poll() is None:
+            run.kill()
 
 
 @pytest.fixture
@@ -158,22 +179,15 @@ def test_another_sessions_reader_is_waited_out_before_the_stack_starts(tmp_path,
     finally:
         node.shutdown()
     results = tmp_path / "trials.jsonl"
-    run = subprocess.Popen([sys.executable, "-m", "ambiegen_ros", "rerun", str(suite_file), "--stack", "nd", "--config",
-                            CONFIG, "--results", str(results), "--repeat", "1", "--domain-id", str(ros_domain)],
-                           cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    said = []
     try:
-        for line in run.stdout:
-            said.append(line)
-            if "reader(s) of scenarios on ROS domain" in line:
-                other.kill()  # its reader stays on the graph until its lease ends: waited out too
-                break
-        said += run.stdout.readlines()
-        assert run.wait(timeout=600) == 0, "".join(said)[-4000:]
+        code, said = rerun_acting([str(suite_file), "--stack", "nd", "--config", CONFIG, "--results", str(results),
+                                   "--repeat", "1", "--domain-id", str(ros_domain)], env,
+                                  lambda line: "reader(s) of scenarios on ROS domain" in line,
+                                  lambda _run: other.kill())  # its reader stays until its lease ends: waited out too
+        assert code == 0, "".join(said)[-4000:]
     finally:
-        for proc in (other, run):
-            if proc.poll() is None:
-                proc.kill()
+        if other.poll() is None:
+            other.kill()
     assert any("waiting for 1 reader(s)" in line for line in said), "".join(said)[-3000:]
     rows = TrialLog(results).rows()
     expected = expected_verdicts(load_suite([str(suite_file)], CONFIG))
@@ -188,21 +202,11 @@ def test_ctrl_c_stops_the_command_and_records_no_lost_run(tmp_path, suite_file, 
     results = tmp_path / "trials.jsonl"
     env = {k: v for k, v in os.environ.items() if k != "AMBIEGEN_TRANSPORT"}
     env["PYTHONUNBUFFERED"] = "1"
-    run = subprocess.Popen([sys.executable, "-m", "ambiegen_ros", "rerun", str(suite_file), "--stack", "nd", "--config",
-                            CONFIG, "--results", str(results), "--repeat", "3", "--domain-id", str(ros_domain)],
-                           cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    said = []
-    try:
-        for line in run.stdout:
-            said.append(line)
-            if line.startswith("[1/9]"):
-                run.send_signal(signals.SIGINT)  # the second run has just gone out
-                break
-        said += run.stdout.readlines()
-        assert run.wait(timeout=300) == 130, "".join(said)[-3000:]
-    finally:
-        if run.poll() is None:
-            run.kill()
+    code, said = rerun_acting([str(suite_file), "--stack", "nd", "--config", CONFIG, "--results", str(results),
+                               "--repeat", "3", "--domain-id", str(ros_domain)], env,
+                              lambda line: line.startswith("[1/9]"),
+                              lambda run: run.send_signal(signals.SIGINT), timeout=300)  # the 2nd run has gone out
+    assert code == 130, "".join(said)[-3000:]
     assert any("interrupted; the runs made are in" in line for line in said), "".join(said)[-2000:]
     rows = TrialLog(results).rows()
     assert 1 <= len(rows) <= 2 and all(r["failure_kind"] not in ("sim_timeout", "error") for r in rows), \
