@@ -150,9 +150,10 @@ class ProcessGroup:
     Each process leads a process group of its own, so that a stop reaches what it started too
     (``ros2 launch`` and its servers, ``ros2 run`` and its node)."""
 
-    def __init__(self, log_dir: Path, env: dict[str, str]):
+    def __init__(self, log_dir: Path, env: dict[str, str], env_of: dict[str, dict[str, str]] | None = None):
         self.log_dir = Path(log_dir)
         self.env = env
+        self.env_of = env_of or {}  # a process's own additions to ``env`` (its transport), by name
         self.procs: dict[str, subprocess.Popen] = {}
 
     def start(self, name: str, module: str, args: list[str]) -> subprocess.Popen:
@@ -162,8 +163,8 @@ class ProcessGroup:
         """Any command (a node of ours, ``ros2 launch ...``), its output in ``<log_dir>/<name>.log``."""
         self.log_dir.mkdir(parents=True, exist_ok=True)
         with open(self.log_dir / f"{name}.log", "ab") as log:
-            self.procs[name] = subprocess.Popen(argv, env=self.env, stdout=log, stderr=subprocess.STDOUT,
-                                                start_new_session=True)
+            self.procs[name] = subprocess.Popen(argv, env={**self.env, **self.env_of.get(name, {})}, stdout=log,
+                                                stderr=subprocess.STDOUT, start_new_session=True)
         return self.procs[name]
 
     def stop(self, order: list[str] | None = None, timeout: float = 15.0) -> None:

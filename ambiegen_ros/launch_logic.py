@@ -244,7 +244,7 @@ def nav2_stack(ns: str, mode: str, params: dict, scaled: Path, seed: int, tag: s
         "nav2_lifecycle_nodes": lifecycle,
         "nav2_clear_costmaps": ",".join(at(f"/{c}_costmap/clear_entirely_{c}_costmap") for c in ("global", "local")),
         "map_upsample": upsample,
-        "tick_period": 0.02,  # a turn every 20 ms is plenty at Nav2's pace, and leaves it the CPU
+        "tick_period": 0.05,  # a turn every 50 ms (Nav2 controls at 20 Hz): its verdict follows stamps, not turns
         "settle_time": 1.0, "start_timeout": start_timeout,
         "early_verdicts": early, "time_limit_speed": speed or 0.0,
         "config_file": config_file, "profile": profile, "min_result_subscribers": 2})

@@ -11,6 +11,11 @@ U(0, 20) s after the run's robot first moves: SIGKILL or SIGSEGV of one of Nav2'
 (controller, planner, behaviours, BT navigator, collision monitor, velocity smoother, lifecycle
 manager), SIGSTOP of one for 30 s, or SIGKILL of our world, adapter or recorder. It ends by itself.
 
+``--never-back`` adds the one fault a campaign cannot survive, last: a stack that never comes back.
+A fresh batch of the suite's first scenario, twice; once run 1 is filed, the params file goes away
+and the controller is killed on run 2, so Nav2's relaunch fails. The command must stop with one
+line naming what did not come back, run 2 filed as the stack's crash and answered in the bag.
+
 Writes ``bench/results/nav2_chaos.json``: ``published`` (scenarios sent), ``accounted_for`` (of
 them, those whose result is in a bag: a verdict, a failure, an error or a timeout), ``faults`` (one
 entry per injected fault: what, when, and what the log says of it: the row's verdict and detail),
@@ -19,6 +24,7 @@ the restarts with their seconds, and the Nav2 hours run and lost.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import signal
 import sys
@@ -89,6 +95,56 @@ def logged(bags: list[Path]) -> tuple[set, set]:
     return sent, answered
 
 
+def never_back(suite, config, settings) -> dict:
+    """The stack that never comes back (see the module's doc): what the batch said and filed."""
+    import threading
+
+    from ambiegen_ros.trials.faults import Fault
+    from ambiegen_ros.trials.rows import TrialLog
+    from ambiegen_ros.trials.runner import run_trials
+    from ambiegen_ros.trials.session import StackStopped
+
+    one = dataclasses.replace(suite, entries=suite.entries[:1])
+    settings.repeat, settings.budget_s = 2, None
+    settings.faults = [Fault("controller_server", signal.SIGKILL, 2, 5.0)]
+    before = len(TrialLog(settings.results).rows())
+    done = threading.Event()
+
+    def params_away() -> None:  # once run 1 is filed (polled: a bench, not a test)
+        while not done.wait(0.5):
+            if len(TrialLog(settings.results).rows()) > before:
+                config.path.rename(config.path.with_suffix(".away"))
+                return
+
+    watcher = threading.Thread(target=params_away, daemon=True)
+    watcher.start()
+    stopped = None
+    try:
+        run_trials(one, [config], settings)
+    except StackStopped as exc:
+        stopped = str(exc)
+    finally:
+        done.set()
+    rows = TrialLog(settings.results).rows()[before:]
+    sent, answered = logged(bags_of(rows))
+    published = {(r["run_id"], r["scenario_id"]) for r in rows}
+    return {"fault": settings.faults[0].spec() + " after the params file went away", "stopped": stopped,
+            "runs": [{"verdict": r["verdict"], "detail": r["detail"][:300], "restarts": r.get("restarts")}
+                     for r in rows],
+            "published": len(published), "accounted_for": len(published & answered)}
+
+
+def fault_table(figures: dict) -> list[str]:
+    """The faults as markdown: what was injected, when, and what the log says of it."""
+    out = ["| # | injected | at (s) | the run's record | restarts (s) |", "|---|---|---|---|---|"]
+    for k, fault in enumerate(figures["faults"], start=1):
+        log = fault["log"] or {}
+        said = f"{log.get('verdict', '(no row)')}: {(log.get('detail') or '')[:110]}".replace("|", "/")
+        took = ", ".join(f"{r['process']} {r['took_s']:.0f}" for r in log.get("restarts") or [] if r.get("took_s"))
+        out.append(f"| {k} | `{fault['what']}` | {fault['when_s']:.0f} | {said} | {took} |")
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("suite", nargs="+")
@@ -102,6 +158,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--bags", required=True)
     ap.add_argument("--domain-id", type=int, default=7)
     ap.add_argument("--tag", default="", help="results/nav2_chaos[_TAG].json")
+    ap.add_argument("--never-back", action="store_true",
+                    help="end with a stack that never comes back (its own batch, in BAGS/never_back)")
     args = ap.parse_args(argv)
 
     from ambiegen_ros.nav2_params import OVERLAY_FILE, package_file
@@ -124,7 +182,8 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.monotonic()
     stopped = None
     try:
-        run_trials(suite, [config], settings)
+        if budget > 0:  # --hours 0: only the stack that never comes back
+            run_trials(suite, [config], settings)
     except StackStopped as exc:
         stopped = str(exc)
     wall = time.monotonic() - t0
@@ -157,8 +216,16 @@ def main(argv: list[str] | None = None) -> int:
         "nav2_hours": round(nav2_s / 3600, 3), "nav2_hours_lost": round(lost_s / 3600, 3),
         "stopped": stopped, "results": args.results, "bags": args.bags,
     }
+    if args.never_back:
+        settings.bags = settings.bags / "never_back"
+        settings.bags.mkdir(parents=True, exist_ok=True)
+        last = prepare(parse_config(args.params), "bringup", str(package_file(*OVERLAY_FILE)), 1.0, settings.bags)
+        figures["never_back"] = never_back(suite, last, settings)
+        figures["published"] += figures["never_back"]["published"]
+        figures["accounted_for"] += figures["never_back"]["accounted_for"]
     path = write_result("nav2_chaos" + (f"_{args.tag}" if args.tag else ""), figures)
     print(json.dumps({k: v for k, v in figures.items() if k != "faults"}, indent=2))
+    print("\n".join(fault_table(figures)))
     print(f"written: {path}")
     return 0 if figures["accounted_for"] == figures["published"] else 1
 

@@ -27,7 +27,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from ambiegen_ros.trials.supervise import cpu_seconds  # noqa: E402  (one reading of /proc for both)
 
 OURS = {"sim_nodes.sut_adapter": "sut_adapter", "sim_nodes.robot_world": "robot_world",
-        "ambiegen_ros.nodes.recorder": "recorder", "ambiegen_ros rerun": "runner", "ambiegen_ros compare": "runner"}
+        "ambiegen_ros.nodes.recorder": "recorder", "ambiegen_ros rerun": "runner", "ambiegen_ros compare": "runner",
+        "ambiegen rerun": "runner", "ambiegen compare": "runner"}  # python -m, or the installed command
 NAV2_LIB = "/lib/nav2_"
 
 

@@ -71,6 +71,11 @@ class Nav2Client:  # pragma: no cover - needs rclpy and nav2_msgs (test/real_ros
             future.add_done_callback(done)
         return out
 
+    def forget_active(self) -> None:
+        """A process of the stack died: its successor starts inactive, so ask every node again before the
+        next goal (a goal sent to a restarting Nav2 is rejected, which is no failure of the scenario)."""
+        self.active.clear()
+
     def clear_costmaps(self) -> None:
         from nav2_msgs.srv import ClearEntireCostmap
 

@@ -152,7 +152,8 @@ class RobotWorldNode:
             conversions.transform(make, self.start_ns, self.frames["base"], self.frames["scan"])]))
         n.create_timer(1.0 / clock_rate, self.tick)
         n.logger.info(f"robot world: {'lockstep' if lockstep else f'{self.time_scale:g}x real time'}, step "
-                      f"{cfg.dt:g} s, scans at {scan_rate:g} Hz on {topic['scan']}, commands from {topic['cmd_vel']}")
+                      f"{cfg.dt:g} s, scans at {scan_rate:g} Hz on {topic['scan']}, commands from {topic['cmd_vel']} "
+                      f"({n.middleware})")
 
     # --- inputs ---------------------------------------------------------------------------------
     def on_obstacles(self, msg: Any) -> None:

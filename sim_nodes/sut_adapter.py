@@ -514,6 +514,8 @@ class SutAdapter:
         for process, part, what in conversions.stack_events_of(msg):
             job = self.job
             self.node.logger.warning(f"{process} ({part}) {what}" + (f" during scenario {job.scenario_id}" if job else ""))
+            if part == "stack" and self.nav2 is not None:
+                self.nav2.forget_active()
             if job is None or job.phase == "queued":
                 continue
             if part == "stack" and job.judge is not None and job.phase in ("waiting", "running"):

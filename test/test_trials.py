@@ -277,3 +277,43 @@ def test_a_fault_is_written_as_target_signal_and_run():
     for bad in ("nd_driver", "nd_driver:KILL@1", "nd_driver:SIGNOPE@1", "nd_driver:SIGKILL@0"):
         with pytest.raises(BadInput, match="--inject"):
             parse_fault(bad)
+
+
+def test_our_transport_moves_the_world_and_the_recorder_and_the_adapter_only_off_nav2(tmp_path):
+    """``--our-transport dds``: the world and the recorder get AMBIEGEN_TRANSPORT=dds in their own
+    environment (the process, not the session, so the runner and the stack keep theirs); the adapter
+    too, except in front of Nav2, whose action only rclpy has."""
+    import subprocess
+    import sys
+    from types import SimpleNamespace
+
+    from ambiegen_ros.campaign import ProcessGroup
+    from ambiegen_ros.trials.session import lean_parts
+
+    assert lean_parts(SimpleNamespace(our_transport=None, stack="bringup")) == ()
+    assert lean_parts(SimpleNamespace(our_transport="dds", stack="bringup")) == ("robot_world", "recorder")
+    assert lean_parts(SimpleNamespace(our_transport="dds", stack="nd")) == ("robot_world", "recorder", "sut_adapter")
+    group = ProcessGroup(tmp_path, {"AMBIEGEN_TRANSPORT": "rclpy"}, {"robot_world": {"AMBIEGEN_TRANSPORT": "dds"}})
+    say = [sys.executable, "-c", "import os; print(os.environ['AMBIEGEN_TRANSPORT'])"]
+    for name in ("robot_world", "nav2"):
+        group.start_argv(name, say).wait(timeout=60)
+    assert (tmp_path / "robot_world.log").read_text().strip() == "dds"
+    assert (tmp_path / "nav2.log").read_text().strip() == "rclpy"
+    helped = subprocess.run([sys.executable, "-m", "ambiegen_ros", "rerun", "--help"], capture_output=True, text=True)
+    assert "--our-transport" in helped.stdout, helped.stdout + helped.stderr
+
+
+def test_a_crash_rerun_says_whether_the_same_crash_came_back():
+    from types import SimpleNamespace
+
+    from ambiegen_ros.trials.runner import crash_again
+
+    first = "the stack crashed: collision_monitor killed by SIGSEGV, 10.2 s into the run"
+    again = SimpleNamespace(failure_kind="sut_crashed", detail="the stack crashed: collision_monitor killed by "
+                                                               "SIGSEGV, 3.0 s into the run")
+    other = SimpleNamespace(failure_kind="sut_crashed", detail="the stack crashed: planner_server stopped (hung: "
+                                                               "SIGSTOP), 18.8 s into the run")
+    assert crash_again(first, again) == "it came back"
+    assert crash_again(first, other) == ("the stack crashed again, differently: planner_server stopped (hung: SIGSTOP) "
+                                         "(first collision_monitor killed by SIGSEGV)")
+    assert crash_again(first, SimpleNamespace(failure_kind="none", detail="")) == "it did not come back"

@@ -37,9 +37,9 @@ def _common(p: argparse.ArgumentParser, many: bool) -> None:
                    "appended (never rewritten); the command resumes from it")
     p.add_argument("--bags", metavar="DIR", help="where each configuration's bag, node logs and merged params go, "
                    "one folder per run of the command (default: RESULTS's folder / <its name>_bags)")
-    p.add_argument("--out", metavar="DIR", help="where the tables (markdown, JSON)" + (" and pictures" if many else "")
-                   + " are written, under new names (default: " + ("RESULTS's folder / <its name>_reports)" if many
-                                                                   else "printed only)"))
+    p.add_argument("--out", metavar="DIR", help="where the tables (markdown, JSON) and pictures (" +
+                   ("of each scenario whose verdict changed" if many else "of each scenario that failed, a crash included")
+                   + ") are written, under new names (default: RESULTS's folder / <its name>_reports)")
     add_config_option(p)
     p.add_argument("--profile", choices=PROFILES, help="fidelity profile of the scenarios' problem (default: the "
                    "suite's or --config's)")
@@ -65,6 +65,9 @@ def _common(p: argparse.ArgumentParser, many: bool) -> None:
                         "this invocation's 2nd run has its robot moving (+S: S seconds later; /HOLD: SIGCONT a "
                         "SIGSTOP after HOLD s); TARGET: robot_world, sut_adapter, recorder, nd_driver, nav2 or a Nav2 "
                         "server's node name")
+    p.add_argument("--our-transport", choices=("dds",), default=None, help="dds: run robot_world and the recorder "
+                   "(and the adapter, unless it drives Nav2's action) on Cyclone DDS from PyPI, at about half "
+                   "rclpy's CPU, beside a stack on rmw_cyclonedds_cpp (default: the transport of this command)")
     p.add_argument("--no-run", action="store_true", help="run nothing: the tables of what --results holds")
 
 
@@ -106,7 +109,7 @@ def _settings(args, results: Path):
                          seed=args.seed, domain_id=args.domain_id, known_failures=str(known) if known else None,
                          fault_speed=args.fault_speed, early_verdicts=args.early_verdicts,
                          start_timeout=args.start_timeout, hang_after=args.hang_after,
-                         faults=[parse_fault(spec) for spec in args.inject])
+                         faults=[parse_fault(spec) for spec in args.inject], our_transport=args.our_transport)
 
 
 def _overlay(args) -> str | None:
@@ -179,8 +182,8 @@ def cmd_trials(args) -> int:
             code = 130
     md, _ = report.report(suite, results, labels)
     print("\n".join(md))
-    out = args.out or (str(results.parent / f"{results.stem}_reports") if args.many else None)
-    if out:
+    out = args.out or str(results.parent / f"{results.stem}_reports")
+    if results.exists():
         written = report.write(suite, results, labels, out, utc_stamp(), "compare" if args.many else "rerun")
         print(f"written: {written['md']}, {written['json']}")
         for picture in written.get("pictures", []):

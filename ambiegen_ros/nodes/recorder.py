@@ -93,7 +93,7 @@ class Recorder:
         n.create_timer(flush_period, self.flush)
         if self.discover or self.pending:
             n.create_timer(1.0, self.discover_topics)
-        n.logger.info(f"recording to {self.path}")
+        n.logger.info(f"recording to {self.path} ({n.middleware})")
 
     def record(self, topic: str, typename: str, qos: Qos) -> None:
         if self.log.channel_id(topic) is not None:

@@ -2,8 +2,9 @@
 
 ``report`` takes the rows of the suite's scenarios and the configurations asked for, and returns
 the markdown (printed) and a JSON document; ``write`` puts both in a folder under names of their
-own (``<what>_<UTC time>.md`` / ``.json``) with, for a comparison, one picture per scenario whose
-status changed between configurations (``viz.trials``). Nothing is written over another file.
+own (``<what>_<UTC time>.md`` / ``.json``) with pictures (``viz.trials``): for a comparison, one per
+scenario whose status changed between configurations; for a rerun, one per scenario that failed in a
+run (a crash of the stack included). Nothing is written over another file.
 """
 from __future__ import annotations
 
@@ -57,8 +58,9 @@ def _safe(name: str) -> str:
 
 def write(suite: Suite, results: str | Path, labels: list[str], out_dir: str | Path, stamp: str,
           what: str) -> dict[str, Any]:
-    """Write ``<what>_<stamp>.md`` and ``.json`` in ``out_dir``, and for a comparison the pictures of
-    the scenarios whose verdicts changed (``pictures_<stamp>/``). Returns the paths written."""
+    """Write ``<what>_<stamp>.md`` and ``.json`` in ``out_dir``, and the pictures (``pictures_<stamp>/``)
+    of the scenarios whose verdicts changed (a comparison) or that failed (a rerun). Returns the paths
+    written."""
     from ..viz.trials import save_runs_side_by_side
     from .tables import Cell
 
@@ -71,12 +73,14 @@ def write(suite: Suite, results: str | Path, labels: list[str], out_dir: str | P
         with open(path, "x") as fh:  # a new name every time: never over an earlier report
             fh.write(text)
         written[suffix] = str(path)
-    if len(labels) > 1:
-        problem = problem_of(suite)
-        names = suite.names()
-        rows = rows_of(results, labels, set(names))
+    problem = problem_of(suite)
+    names = suite.names()
+    rows = rows_of(results, labels, set(names))
+    drawn = changed(suite, results, labels) if len(labels) > 1 else \
+        [key for key in names if any(r["key"] == key and r.get("failed") for r in rows)]
+    if drawn:
         pictures = []
-        for key in changed(suite, results, labels):
+        for key in drawn:
             entry = next(e for e in suite.entries if e.key == key)
             panels = []
             for label in labels:

@@ -14,6 +14,7 @@ not come back, the configuration stops with one line naming the logs.
 from __future__ import annotations
 
 import math
+import re
 import sys
 import time
 from dataclasses import dataclass, field
@@ -48,6 +49,7 @@ class TrialSettings:
     faults: list[Fault] = field(default_factory=list)  # injected on purpose (``faults``)
     budget_s: float | None = None  # wall seconds of sending: no run starts after it (None: all runs)
     extra_env: dict[str, str] = field(default_factory=dict)
+    our_transport: str | None = None  # dds: the world and the recorder on Cyclone DDS from PyPI (``lean_parts``)
 
 
 def _number(value: Any) -> float | None:
@@ -135,7 +137,11 @@ def _run_configuration(suite: Suite, p: Prepared, todo: list[tuple[int, Entry]],
             before = session.between_runs()
             bag = session.bags[-1]
             outcome, sid, wall, w0, deaths = session.run(entry, made)
-            restarts = session.recover(deaths) if deaths else []
+            stopped = None
+            try:
+                restarts = session.recover(deaths) if deaths else []
+            except StackStopped as exc:  # a part that never came back: this run is still filed, then we stop
+                restarts, stopped = [{"event": "restart", "process": None, "why": str(exc), "ok": False}], exc
             repeat = done[entry.key] + 1
             events = [{"process": d.process, "part": d.part, "what": d.what} for d in deaths]
             row = row_of(outcome, entry, suite, p, settings, repeat, session.run_id, sid, bag, wall, w0,
@@ -149,6 +155,8 @@ def _run_configuration(suite: Suite, p: Prepared, todo: list[tuple[int, Entry]],
             elif not explained:  # an error a restart of ours explains is not the kind that repeats
                 errors += 1
             _say_run(say, clock, label, entry, repeat, settings.repeat, outcome, row, wall)
+            if stopped is not None:
+                raise stopped
             if outcome.failure_kind == "sut_crashed" and "crash_rerun_of" not in extra:
                 # once more on the fresh stack: does the crash come back?
                 queue.insert(0, (entry, {"crash_rerun_of": {"run_id": session.run_id, "scenario_id": sid,
@@ -173,9 +181,19 @@ def _say_run(say: Callable[[str], None], clock: dict, label: str, entry: Entry, 
     which = f"run {repeat}/{of}" if repeat <= of else f"run {repeat} (one more)"
     say(f"[{count}/{total}] {label} {entry.name} {which}: {outcome.verdict[:90]}"
         + (f" ({outcome.detail[:120]})" if outcome.failed or not counted(row) else "")
-        + (" (the crash's rerun on a fresh stack: it " + ("came back" if outcome.failure_kind == "sut_crashed"
-                                                            else "did not come back") + ")" if rerun else "")
+        + (f" (the crash's rerun on a fresh stack: {crash_again(rerun['detail'], outcome)})" if rerun else "")
         + f"  {wall:.0f} s" + (f", about {eta / 60:.0f} min left" if count < total else ""))
+
+
+def crash_again(first: str, outcome: Any) -> str:
+    """Did the crash come back: the same process and the same death, another one, or none."""
+    if outcome.failure_kind != "sut_crashed":
+        return "it did not come back"
+    what = re.compile(r"the stack crashed: (.+?), [0-9.]+ s into the run")
+    was, now = what.search(first), what.search(outcome.detail)
+    if was and now and was.group(1) != now.group(1):
+        return f"the stack crashed again, differently: {now.group(1)} (first {was.group(1)})"
+    return "it came back"
 
 
 __all__ = ["StackStopped", "TrialSettings", "row_of", "run_trials", "utc_stamp"]

@@ -102,6 +102,15 @@ class SuiteDriver:
         return outcome
 
 
+def lean_parts(settings: Any) -> tuple[str, ...]:
+    """Our parts that run on ``settings.our_transport`` (dds: about half the CPU of rclpy, see
+    docs/speed.md): the world and the recorder; the adapter too, unless it drives Nav2's
+    navigate_to_pose action, which only rclpy has."""
+    if not settings.our_transport:
+        return ()
+    return ("robot_world", "recorder") + (() if settings.stack in NAV2_STACKS else ("sut_adapter",))
+
+
 def stack_nodes(settings: Any, prepared: Prepared, problem_file: Path, bag: Path, tag: str) -> list:
     """The node set of one configuration: recorder, world, stack, adapter (``launch_logic.NodeSpec``)."""
     from ..campaign import STACK_TOPICS
@@ -142,7 +151,7 @@ class StackSession:
         from ..campaign import ProcessGroup, discovery_scope, node_argv
         from ..ros import topics
         from ..ros.qos import STREAM
-        from ..ros.transport import create_node
+        from ..ros.transport import ENV_VAR, create_node
 
         self.settings, self.suite, self.prepared, self.say = settings, suite, prepared, say
         self.injector = injector or Injector([], say)
@@ -157,7 +166,8 @@ class StackSession:
         if settings.domain_id is not None:
             env["ROS_DOMAIN_ID"] = str(settings.domain_id)
         env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = discovery_scope(None, env)
-        self.group = ProcessGroup(self.dir / "logs", env)
+        self.group = ProcessGroup(self.dir / "logs", env, {name: {ENV_VAR: settings.our_transport}
+                                                           for name in lean_parts(settings)})
         self.argv: dict[str, list[str]] = {}
         self.nodes = stack_nodes(settings, prepared, problem_file, self.bag, self.run_id[-6:])
         for node in self.nodes:
@@ -180,7 +190,8 @@ class StackSession:
         for name, argv in self.argv.items():
             self.group.start_argv(name, argv)
         self.pub_events = self.node.create_publisher(topics.STACK_EVENTS_TYPE, topics.STACK_EVENTS, STREAM)
-        self.node.create_subscription("nav_msgs/msg/Odometry", "/odom", self._on_odom, STREAM)
+        if self.injector.faults:  # when a run's robot moves: only injected faults wait for it (50 Hz of odometry)
+            self.node.create_subscription("nav_msgs/msg/Odometry", "/odom", self._on_odom, STREAM)
         self.cmd_vel_seen = time.monotonic()
         self._cmd_sub = False
         self.driver.announce(self.run_id, {"trials": prepared.record(), "stack": settings.stack,
@@ -429,9 +440,12 @@ class StackSession:
             self.bags.append(self.dir / f"trials.{len(self.bags)}.mcap")
             argv = [a.replace(f"output:={self.bags[-2]}", f"output:={self.bags[-1]}") for a in argv]
             self.argv[name] = argv
-        self.group.start_argv(name, argv)
+        started = self.group.start_argv(name, argv)
         self.watch.forget(name)
-        ok = self.node.spin_until(lambda: self._shows_up(name), self.settings.ready_timeout)
+        # a successor that exits at once (a params file gone, a broken install) will not come back:
+        # stop now with its last words rather than wait out the bound
+        ok = self.node.spin_until(lambda: self._shows_up(name) or started.poll() is not None,
+                                  self.settings.ready_timeout) and started.poll() is None
         self._interrupted()
         took = time.monotonic() - t0
         if ok and name == "recorder":  # what the dead recorder did not hear: its own death, the run's result
@@ -441,8 +455,12 @@ class StackSession:
         self.say(f"[{self.prepared.config.label}] restarted {name} ({why.words()}) in {took:.1f} s"
                  + ("" if ok else " but it did not show up"))
         if not ok:
-            raise StackStopped(f"{name} did not come back within {self.settings.ready_timeout:.0f} s after "
-                               f"{why.words()} (logs: {self.dir / 'logs'})")
+            after = f"after {why.words()} (logs: {self.dir / 'logs'})"
+            if started.poll() is not None:
+                raise StackStopped(f"{name} did not come back: it exited with status {started.returncode} "
+                                   f"{took:.0f} s after its restart, saying "
+                                   f"{last_words(self.dir / 'logs' / f'{name}.log')!r}, {after}")
+            raise StackStopped(f"{name} did not come back within {self.settings.ready_timeout:.0f} s {after}")
         return record
 
     def relog(self, why: Death) -> None:

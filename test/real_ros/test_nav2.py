@@ -261,3 +261,29 @@ def test_a_campaign_split_into_parts_runs_as_across_hosts(jazzy, workspace, grap
     counts = rosbags_counts(mcap)
     for ns in ("stack0", "stack1"):
         assert counts.get(f"/{ns}/odom", 0) > 0 and counts.get(f"/{ns}/scan", 0) > 0, counts
+
+
+def test_rerun_beside_nav2_with_our_world_and_recorder_on_the_dds_backend(jazzy, workspace, tmp_path, ros_domain):
+    """``ambiegen rerun --stack bringup --our-transport dds`` (issue 58): the world and the recorder
+    on Cyclone DDS from PyPI, the adapter on rclpy (Nav2's action), Jazzy's Nav2 on
+    rmw_cyclonedds_cpp: Nav2 drives in our world on its clock and TF, and every run has its verdict
+    and Nav2's own result."""
+    import json
+
+    from ambiegen_ros.trials.rows import TrialLog
+
+    require(jazzy, *BRINGUP)
+    passes = json.loads((REPO / "docs" / "results" / "nav2" / "mppi_hazards_passes_suite.json").read_text())
+    suite = tmp_path / "two.json"
+    suite.write_text(json.dumps({**passes, "suite": passes["suite"][:2]}))
+    results, bags = tmp_path / "rows.jsonl", tmp_path / "bags"
+    run = ros_run(f"ros2 run ambiegen_ros ambiegen rerun {suite} --stack bringup --params jazzy={jazzy_params(jazzy)} "
+                  f"--our-transport dds --repeat 1 --domain-id {ros_domain} --results {results} --bags {bags}",
+                  workspace, ros_env(ros_domain), timeout=900)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    rows = TrialLog(results).rows()
+    assert len(rows) == 2 and all(r["failure_kind"] not in ("error", "sim_timeout", "invalid_test") for r in rows), rows
+    assert all(r.get("nav2_status") for r in rows), rows  # Nav2's own answer, through the rclpy adapter
+    (logs,) = bags.glob("jazzy_*/logs")
+    for part in ("robot_world", "recorder"):
+        assert "dds backend over Cyclone DDS" in (logs / f"{part}.log").read_text(), part

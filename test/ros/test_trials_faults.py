@@ -8,7 +8,8 @@ signal, certified like any failure, and the same scenario runs once more on a fr
 of ours is an error record naming the part, and the run is made again once the part is back; every
 scenario gets the verdict the in-process full model gives it; every scenario sent is in a bag with
 a result; the bag of the killed recorder is rebuilt readable. Also: the recorder stops with one line
-when its file can take no more (a file size limit stands in for a full disk: the same OSError path).
+when its file can take no more (a file size limit stands in for a full disk: the same OSError path);
+and a stack that never comes back stops the command with one line, its last run filed.
 """
 from __future__ import annotations
 
@@ -31,7 +32,7 @@ for extra in (REPO, REPO / "test", REPO / "test" / "ros"):
 from ambiegen_ros.ros import topics  # noqa: E402
 from ambiegen_ros.trials.rows import TrialLog  # noqa: E402
 from ambiegen_ros.trials.suite import load_suite  # noqa: E402
-from test_trials_nd import CONFIG, PICKED, CASES, ambiegen, expected_verdicts  # noqa: E402
+from test_trials_nd import CONFIG, PICKED, CASES, ambiegen, expected_verdicts, rerun_acting  # noqa: E402
 
 pytestmark = pytest.mark.skipif(os.environ.get("AMBIEGEN_TRANSPORT", "auto") == "rclpy",
                                 reason="these tests drive the DDS backend")
@@ -106,6 +107,42 @@ def test_every_fault_is_filed_under_its_true_cause_and_the_runs_go_on(tmp_path, 
     assert [e["process"] for e in events if e["event"] == "death"] == ["nd_driver", "robot_world", "sut_adapter",
                                                                        "nd_driver", "recorder"]
     assert all(e["ok"] and e["took_s"] > 0 for e in events if e["event"] == "restart")
+    # the crash is drawn with the failures, in the reports the command wrote beside its results
+    drawn = {p.name for p in (results.parent / "trials_reports").glob("pictures_*/*.png")}
+    assert "case0.png" in drawn and f"picture: {results.parent}" in run.stdout, drawn
+
+
+def test_a_stack_that_never_comes_back_stops_with_one_line_and_its_last_run_filed(tmp_path, ros_domain):
+    """The stack killed on run 2 after its params file went away (once run 1 is filed: an event): the
+    relaunch exits at once, so the command stops saying so (no wait for the 300 s bound), with run 2
+    filed as the stack's crash and in the bag with its result."""
+    suite_file = tmp_path / "hazards_suite.json"
+    suite_file.write_text(json.dumps({"suite": [{"scenario": CASES["cases"][i]["scenario"], "name": f"case{i}"}
+                                                for i in (0, 1)]}))
+    params = tmp_path / "settle.yaml"  # the nodes' params file, as a Nav2 stack has one
+    params.write_text("sut_adapter:\n  ros__parameters:\n    settle_time: 0.1\n")
+    results, bags = tmp_path / "trials.jsonl", tmp_path / "bags"
+    args = [str(suite_file), "--stack", "nd", "--config", CONFIG, "--params", f"settle={params}", "--results",
+            str(results), "--bags", str(bags), "--repeat", "1", "--domain-id", str(ros_domain),
+            "--inject", "nd_driver:SIGKILL@2"]
+    env = {k: v for k, v in os.environ.items() if k != "AMBIEGEN_TRANSPORT"}
+
+    def params_away(_run) -> None:
+        for params in bags.glob("*.params.yaml"):
+            params.rename(params.with_suffix(".away"))
+
+    code, said = rerun_acting(args, env, lambda line: line.startswith("[1/"), params_away)
+    text = "".join(said)
+    assert code == 1, text[-3000:]
+    stops = [line for line in said if "stopped:" in line]
+    assert len(stops) == 1 and "nd_driver did not come back: it exited with status" in stops[0], text[-3000:]
+    rows = TrialLog(results).rows()
+    assert [r["scenario_name"] for r in rows] == ["case0", "case1"]
+    assert rows[1]["failure_kind"] == "sut_crashed" and "nd_driver killed by SIGKILL" in rows[1]["detail"]
+    assert rows[1]["restarts"][-1]["ok"] is False and "did not come back" in rows[1]["restarts"][-1]["why"]
+    bag = Path(rows[1]["bag"])
+    sent, answered = ids(bag, topics.scenarios("robot")), ids(bag, topics.RESULTS)
+    assert sent == answered == {(r["run_id"], r["scenario_id"]) for r in rows}
 
 
 def expected_kind(expected: dict, row: dict) -> str:
