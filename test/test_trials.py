@@ -317,3 +317,25 @@ def test_a_crash_rerun_says_whether_the_same_crash_came_back():
     assert crash_again(first, other) == ("the stack crashed again, differently: planner_server stopped (hung: SIGSTOP) "
                                          "(first collision_monitor killed by SIGSEGV)")
     assert crash_again(first, SimpleNamespace(failure_kind="none", detail="")) == "it did not come back"
+
+
+def test_a_node_started_without_its_name_is_found_by_its_executable(tmp_path):
+    """Jazzy's navigation_launch.py starts controller_server with no ``__node:=``: its process is named
+    after its executable (17 characters; /proc's comm keeps 15), so a fault can target it."""
+    import subprocess
+    import sys
+
+    from ambiegen_ros.trials.supervise import node_name
+
+    exe = tmp_path / "controller_server"
+    exe.symlink_to(sys.executable)
+    named = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)", "--ros-args", "-r",
+                              "__node:=planner_server"])
+    plain = subprocess.Popen([str(exe), "-c", "import time; time.sleep(60)"])
+    try:
+        assert node_name(named.pid) == "planner_server"
+        assert node_name(plain.pid) == "controller_server"
+    finally:
+        for proc in (named, plain):
+            proc.kill()
+            proc.wait()

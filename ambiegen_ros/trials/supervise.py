@@ -57,7 +57,9 @@ class Death:
 
 
 def node_name(pid: int) -> str | None:
-    """The ROS node name a process runs (``__node:=NAME`` on its command line), else its command."""
+    """The ROS node name a process runs (``__node:=NAME`` on its command line), else its executable's
+    name (Jazzy's ``navigation_launch.py`` starts ``controller_server`` without ``__node``; /proc's
+    ``comm`` would say ``controller_serv``, cut at 15 characters)."""
     try:
         args = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
     except OSError:
@@ -65,6 +67,8 @@ def node_name(pid: int) -> str | None:
     for arg in args:
         if arg.startswith(b"__node:="):
             return arg[8:].decode(errors="replace")
+    if args and args[0]:
+        return Path(args[0].decode(errors="replace")).name
     try:
         return Path(f"/proc/{pid}/comm").read_text().strip()
     except OSError:
