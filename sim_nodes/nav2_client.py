@@ -1,7 +1,11 @@
-"""What ``sut_adapter`` says to Nav2 besides topics (rclpy only): its lifecycle, costmaps and action.
+"""What ``sut_adapter`` says to Nav2 besides topics: its lifecycle, costmaps and action.
 
 Written after ``nav2_simple_commander``'s ``BasicNavigator``, without blocking: every call is
 asynchronous and the adapter polls from its timers, so a slow Nav2 never stalls the executor.
+The clients come from the node's transport (``Node.create_client`` / ``create_action_client``):
+rclpy's own on the rclpy backend, ``transport/dds_services.py`` (rmw_cyclonedds_cpp's wire format)
+on the DDS backend, so the adapter can face a Nav2 on rmw_cyclonedds_cpp without rclpy's executor.
+Their messages are the backend's, ``send``'s pose included (``node.new_message``).
 
 * ``missing()``: what Nav2 has not shown yet: the ``navigate_to_pose`` action server, and each of
   ``lifecycle_nodes`` in state ``active`` (asked over ``<node>/get_state``, as
@@ -19,17 +23,17 @@ from __future__ import annotations
 from typing import Any
 
 STATUS_NAMES = {4: "succeeded", 5: "canceled", 6: "aborted"}  # action_msgs/GoalStatus
+ACTION_TYPE = "nav2_msgs/action/NavigateToPose"
+GET_STATE = "lifecycle_msgs/srv/GetState"
+CLEAR_COSTMAP = "nav2_msgs/srv/ClearEntireCostmap"
 
 
-class Nav2Client:  # pragma: no cover - needs rclpy and nav2_msgs (test/real_ros covers it with Nav2)
-    def __init__(self, rclpy_node: Any, action_name: str, lifecycle_nodes: list[str], costmap_services: list[str],
+class Nav2Client:
+    def __init__(self, node: Any, action_name: str, lifecycle_nodes: list[str], costmap_services: list[str],
                  logger: Any):
-        from nav2_msgs.action import NavigateToPose
-        from rclpy.action import ActionClient
-
-        self.node, self.logger = rclpy_node, logger
-        self.action_type = NavigateToPose
-        self.action = ActionClient(rclpy_node, NavigateToPose, action_name)
+        """``node``: the adapter's transport node (either backend)."""
+        self.node, self.logger = node, logger
+        self.action = node.create_action_client(ACTION_TYPE, action_name)
         self.action_name = action_name
         self.lifecycle_nodes = [n.strip().strip("/") for n in lifecycle_nodes if n.strip()]
         self.costmap_services = [s.strip() for s in costmap_services if s.strip()]
@@ -45,8 +49,6 @@ class Nav2Client:  # pragma: no cover - needs rclpy and nav2_msgs (test/real_ros
     # --- readiness ------------------------------------------------------------------------------
     def missing(self) -> list[str]:
         """What Nav2 has not shown yet (empty: ready). Asks each inactive lifecycle node again."""
-        from lifecycle_msgs.srv import GetState
-
         out = []
         if not self.action.server_is_ready():
             out.append(f"Nav2's {self.action_name} action server is not up")
@@ -56,11 +58,11 @@ class Nav2Client:  # pragma: no cover - needs rclpy and nav2_msgs (test/real_ros
             out.append(f"Nav2 node {name} is not active")
             client = self._state_clients.get(name)
             if client is None:
-                client = self._state_clients[name] = self.node.create_client(GetState, f"/{name}/get_state")
+                client = self._state_clients[name] = self.node.create_client(GET_STATE, f"/{name}/get_state")
             if name in self._asking or not client.service_is_ready():
                 continue
             self._asking.add(name)
-            future = client.call_async(GetState.Request())
+            future = client.call_async(client.new_request())
 
             def done(f, name=name):
                 self._asking.discard(name)
@@ -73,26 +75,25 @@ class Nav2Client:  # pragma: no cover - needs rclpy and nav2_msgs (test/real_ros
 
     def forget_active(self) -> None:
         """A process of the stack died: its successor starts inactive, so ask every node again before the
-        next goal (a goal sent to a restarting Nav2 is rejected, which is no failure of the scenario)."""
+        next goal (a goal sent to a restarting Nav2 is rejected, which is no failure of the scenario).
+        A question the dead node never answered is forgotten too, or its node would never be asked again."""
         self.active.clear()
+        self._asking.clear()
 
     def clear_costmaps(self) -> None:
-        from nav2_msgs.srv import ClearEntireCostmap
-
         for service in self.costmap_services:
             client = self._clear_clients.get(service)
             if client is None:
-                client = self._clear_clients[service] = self.node.create_client(ClearEntireCostmap, service)
+                client = self._clear_clients[service] = self.node.create_client(CLEAR_COSTMAP, service)
             if client.service_is_ready():
-                client.call_async(ClearEntireCostmap.Request())
+                client.call_async(client.new_request())
             else:
                 self.logger.warning(f"{service} is not available: the costmap keeps the last scenario's marks")
 
     # --- the goal -------------------------------------------------------------------------------
     def send(self, pose: Any) -> None:
-        """Send a ``geometry_msgs/PoseStamped`` goal (an rclpy message); the outcome goes to ``result``."""
-        request = self.action_type.Goal()
-        request.pose = pose
+        """Send a ``geometry_msgs/PoseStamped`` goal (the node's ``new_message``); the outcome goes to ``result``."""
+        request = self.action.new_goal(pose=pose)
         self.handle, self.result, self.recoveries = None, None, 0
         self.goals += 1
         goal_number = self.goals

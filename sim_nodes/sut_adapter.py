@@ -23,9 +23,10 @@ To the generator it is one more sim worker (heartbeats on ``/ambiegen/workers``,
   published after the goal are counted (``metrics["plans"]``, the last one's ``plan_length_m``),
   and a failure without any says so: a robot that never moves because its planner gave no path
   reads differently from one that could not follow its path.
-  With ``goal_mode:=action`` (rclpy only) the goal is Nav2's ``navigate_to_pose`` action
-  (``sim_nodes.nav2_client``): a scenario starts once the action server is up and every node of
-  ``nav2_lifecycle_nodes`` is active; each new map clears both costmaps
+  With ``goal_mode:=action`` the goal is Nav2's ``navigate_to_pose`` action
+  (``sim_nodes.nav2_client``; on the DDS backend its services speak rmw_cyclonedds_cpp's wire
+  format, so Nav2 must run on rmw_cyclonedds_cpp there): a scenario starts once the action server
+  is up and every node of ``nav2_lifecycle_nodes`` is active; each new map clears both costmaps
   (``nav2_clear_costmaps``). **Nav2's own outcome is the verdict** (``early_verdicts:=false``,
   the default in this mode), so its recoveries (clear costmaps, spin, back up, wait, replan) get
   their turn: the goal succeeded = PASS; Nav2 aborted (or rejected) it = FAIL(nav2_aborted, with
@@ -198,7 +199,7 @@ class SutAdapter:
         self.run_invalid = p("run_invalid", False, "also run scenarios the problem calls invalid")
         self.reference = bool(p("reference", True, "a failure counts only when the problem's reference passes the "
                                                    "scenario (false: the old, unchecked verdicts)"))
-        self.goal_mode = p("goal_mode", "topic", "topic | action (Nav2 navigate_to_pose, rclpy only)")
+        self.goal_mode = p("goal_mode", "topic", "topic | action (Nav2 navigate_to_pose)")
         self.start_heading = p("start_heading", "route", "robot: initial pose facing along its route (as the full "
                                                           "model starts) | as the scenario message says")
         self.action_name = p("action_name", "navigate_to_pose", "Nav2 action for goal_mode action")
@@ -249,8 +250,6 @@ class SutAdapter:
                 raise ConfigError(f"{name}: unknown {value!r} (allowed: {'|'.join(allowed)})")
         if not self.time_scale > 0:
             raise ConfigError("time_scale: must be > 0")
-        if self.goal_mode == "action" and n.backend_name != "rclpy":
-            raise ConfigError("goal_mode: 'action' needs the rclpy backend (the DDS backend has no actions)")
 
         defaults = sim_config(self.problem_name)
         options = {}
@@ -326,10 +325,10 @@ class SutAdapter:
         self.pre_goal: tuple | None = None  # the last sample before the goal went out
         self._fast = None
         self.nav2 = None
-        if self.goal_mode == "action":  # pragma: no cover - needs rclpy and nav2_msgs
+        if self.goal_mode == "action":  # either backend: the DDS one speaks rmw_cyclonedds_cpp's services
             from sim_nodes.nav2_client import Nav2Client
 
-            self.nav2 = Nav2Client(n._node, self.action_name, nav2_nodes.split(","), nav2_clear.split(","), n.logger)
+            self.nav2 = Nav2Client(n, self.action_name, nav2_nodes.split(","), nav2_clear.split(","), n.logger)
         self.endpoint = WorkerEndpoint(n, self.problem, self.accept,
                                        lambda: len(self.queue) + (self.job is not None), default_id)
         self.worker_id = self.endpoint.worker_id

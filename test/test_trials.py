@@ -279,10 +279,11 @@ def test_a_fault_is_written_as_target_signal_and_run():
             parse_fault(bad)
 
 
-def test_our_transport_moves_the_world_and_the_recorder_and_the_adapter_only_off_nav2(tmp_path):
-    """``--our-transport dds``: the world and the recorder get AMBIEGEN_TRANSPORT=dds in their own
-    environment (the process, not the session, so the runner and the stack keep theirs); the adapter
-    too, except in front of Nav2, whose action only rclpy has."""
+def test_our_transport_moves_the_world_the_recorder_and_the_adapter(tmp_path, monkeypatch):
+    """``--our-transport dds``: our three parts get AMBIEGEN_TRANSPORT=dds in their own environment
+    (the process, not the session, so the runner and the stack keep theirs), the adapter in front of
+    Nav2 too; a Nav2 that would not run on rmw_cyclonedds_cpp is refused in one line."""
+    import os
     import subprocess
     import sys
     from types import SimpleNamespace
@@ -291,8 +292,8 @@ def test_our_transport_moves_the_world_and_the_recorder_and_the_adapter_only_off
     from ambiegen_ros.trials.session import lean_parts
 
     assert lean_parts(SimpleNamespace(our_transport=None, stack="bringup")) == ()
-    assert lean_parts(SimpleNamespace(our_transport="dds", stack="bringup")) == ("robot_world", "recorder")
-    assert lean_parts(SimpleNamespace(our_transport="dds", stack="nd")) == ("robot_world", "recorder", "sut_adapter")
+    for stack in ("bringup", "nd"):
+        assert lean_parts(SimpleNamespace(our_transport="dds", stack=stack)) == ("robot_world", "recorder", "sut_adapter")
     group = ProcessGroup(tmp_path, {"AMBIEGEN_TRANSPORT": "rclpy"}, {"robot_world": {"AMBIEGEN_TRANSPORT": "dds"}})
     say = [sys.executable, "-c", "import os; print(os.environ['AMBIEGEN_TRANSPORT'])"]
     for name in ("robot_world", "nav2"):
@@ -301,6 +302,14 @@ def test_our_transport_moves_the_world_and_the_recorder_and_the_adapter_only_off
     assert (tmp_path / "nav2.log").read_text().strip() == "rclpy"
     helped = subprocess.run([sys.executable, "-m", "ambiegen_ros", "rerun", "--help"], capture_output=True, text=True)
     assert "--our-transport" in helped.stdout, helped.stdout + helped.stderr
+    suite = REPO / "docs" / "results" / "nav2" / "two_passes_suite.json"
+    env = {k: v for k, v in os.environ.items() if k != "RMW_IMPLEMENTATION"}
+    refused = subprocess.run([sys.executable, "-m", "ambiegen_ros", "rerun", str(suite), "--stack", "bringup",
+                              "--params", str(tmp_path / "nav2_params.yaml"), "--results", str(tmp_path / "r.jsonl"),
+                              "--our-transport", "dds"],
+                             capture_output=True, text=True, env=env, timeout=120)
+    assert refused.returncode != 0 and "RMW_IMPLEMENTATION=rmw_cyclonedds_cpp" in refused.stderr, refused.stderr
+    assert not (tmp_path / "r.jsonl").exists()
 
 
 def test_a_crash_rerun_says_whether_the_same_crash_came_back():

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -65,9 +66,9 @@ def _common(p: argparse.ArgumentParser, many: bool) -> None:
                         "this invocation's 2nd run has its robot moving (+S: S seconds later; /HOLD: SIGCONT a "
                         "SIGSTOP after HOLD s); TARGET: robot_world, sut_adapter, recorder, nd_driver, nav2 or a Nav2 "
                         "server's node name")
-    p.add_argument("--our-transport", choices=("dds",), default=None, help="dds: run robot_world and the recorder "
-                   "(and the adapter, unless it drives Nav2's action) on Cyclone DDS from PyPI, at about half "
-                   "rclpy's CPU, beside a stack on rmw_cyclonedds_cpp (default: the transport of this command)")
+    p.add_argument("--our-transport", choices=("dds",), default=None, help="dds: run robot_world, the recorder "
+                   "and the adapter on Cyclone DDS from PyPI, without rclpy's executor (less CPU: docs/speed.md), "
+                   "beside a Nav2 on rmw_cyclonedds_cpp (default: the transport of this command)")
     p.add_argument("--no-run", action="store_true", help="run nothing: the tables of what --results holds")
 
 
@@ -104,6 +105,10 @@ def _settings(args, results: Path):
         known = args.known_failures or package_file("config", "nav2", "known_failures.yaml")
         if known and not Path(known).is_file():
             raise BadInput(f"--known-failures {known}: no such file")
+    rmw = os.environ.get("RMW_IMPLEMENTATION", "")
+    if nav2 and args.our_transport == "dds" and rmw != "rmw_cyclonedds_cpp":
+        raise BadInput(f"--our-transport dds speaks rmw_cyclonedds_cpp's services to Nav2, which would run on "
+                       f"{rmw or 'the default RMW (Fast DDS)'}: export RMW_IMPLEMENTATION=rmw_cyclonedds_cpp")
     bags = Path(args.bags) if args.bags else results.parent / f"{results.stem}_bags"
     return TrialSettings(stack=args.stack, results=results, bags=bags, repeat=args.repeat, time_scale=args.time_scale,
                          seed=args.seed, domain_id=args.domain_id, known_failures=str(known) if known else None,

@@ -103,12 +103,12 @@ class SuiteDriver:
 
 
 def lean_parts(settings: Any) -> tuple[str, ...]:
-    """Our parts that run on ``settings.our_transport`` (dds: about half the CPU of rclpy, see
-    docs/speed.md): the world and the recorder; the adapter too, unless it drives Nav2's
-    navigate_to_pose action, which only rclpy has."""
+    """Our parts that run on ``settings.our_transport`` (dds: no rclpy executor, whose Python wait
+    set cost each part hundreds of microseconds a message; docs/speed.md): the world, the recorder
+    and the adapter, which speaks rmw_cyclonedds_cpp's services to Nav2's action."""
     if not settings.our_transport:
         return ()
-    return ("robot_world", "recorder") + (() if settings.stack in NAV2_STACKS else ("sut_adapter",))
+    return ("robot_world", "recorder", "sut_adapter")
 
 
 def stack_nodes(settings: Any, prepared: Prepared, problem_file: Path, bag: Path, tag: str) -> list:

@@ -629,6 +629,25 @@ def test_timers_spin_once_and_shutdown(dds_env, ros_domain):
         node.create_timer(1.0, lambda: None)
 
 
+def test_topic_names_follow_endpoints_that_come_and_go(dds_env, ros_domain):
+    """The node keeps its list from what changed between two calls (issue 58: the recorder asks
+    once a second beside Nav2's hundreds of endpoints); a publisher that leaves takes its topic."""
+    node = dds_env(ros_domain, "watcher")
+    other = dds_env(ros_domain, "other")
+
+    def names():
+        return dict(node.topic_names_and_types())
+
+    pub = other.create_publisher(STRING, "/come_and_go", DEFAULT)
+    assert node.spin_until(lambda: "/come_and_go" in names(), PATIENCE)
+    assert names()["/come_and_go"] == [STRING] and "/come_and_go" in names()  # asked again: still there
+    other.create_subscription("std_msgs/msg/Int32", "/stays", lambda m: None, DEFAULT)
+    assert node.spin_until(lambda: "/stays" in names(), PATIENCE)
+    pub.destroy()
+    assert node.spin_until(lambda: "/come_and_go" not in names(), PATIENCE)
+    assert names()["/stays"] == ["std_msgs/msg/Int32"]
+
+
 def test_in_process_pubsub_raw_and_bad_payload(dds_env, ros_domain):
     node = dds_env(ros_domain)
     got, raw = [], []

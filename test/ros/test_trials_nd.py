@@ -142,18 +142,18 @@ def test_compare_runs_each_configuration_and_draws_what_changed(tmp_path, suite_
 
 
 def test_a_node_that_refuses_its_params_stops_the_configuration_with_its_own_words(tmp_path, suite_file, ros_domain):
-    """A node of the session that exits while the stack comes up (here the adapter, asked for Nav2's
-    action on the DDS backend, which has none) stops the command at once with the node's last line,
-    instead of waiting out the start-up bound; nothing is recorded as run."""
+    """A node of the session that exits while the stack comes up (here the adapter, given a goal
+    mode it does not know) stops the command at once with the node's last line, instead of waiting
+    out the start-up bound; nothing is recorded as run."""
     bad = tmp_path / "bad.yaml"
-    bad.write_text("sut_adapter:\n  ros__parameters:\n    goal_mode: action\n")
+    bad.write_text("sut_adapter:\n  ros__parameters:\n    goal_mode: carrier_pigeon\n")
     results = tmp_path / "trials.jsonl"
     run = ambiegen("rerun", str(suite_file), "--stack", "nd", "--config", CONFIG, "--results", str(results),
                    "--params", f"bad={bad}", "--repeat", "1", "--domain-id", str(ros_domain), timeout=250)
     assert run.returncode == 1, run.stdout[-3000:] + run.stderr[-3000:]
     said = run.stdout + run.stderr
     assert "sut_adapter exited with code 2 while the stack came up" in said, said[-3000:]
-    assert "needs the rclpy backend" in said
+    assert "goal_mode: unknown 'carrier_pigeon'" in said
     assert not results.exists() or TrialLog(results).rows() == []
 
 

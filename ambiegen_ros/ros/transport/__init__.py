@@ -14,12 +14,12 @@ from __future__ import annotations
 import os
 from typing import Any, Sequence
 
-from .base import (BackendUnavailable, EndpointInfo, Logger, Node, ParameterError, Publisher,
-                   Subscription, Timer, TransportError)
+from .base import (ActionClient, BackendUnavailable, EndpointInfo, Logger, Node, ParameterError, Publisher,
+                   ServiceClient, Subscription, Timer, TransportError)
 
 __all__ = [
     "create_node", "available_backends", "select_backend", "shutdown",
-    "Node", "Publisher", "Subscription", "Timer", "Logger", "EndpointInfo",
+    "Node", "Publisher", "Subscription", "Timer", "ServiceClient", "ActionClient", "Logger", "EndpointInfo",
     "TransportError", "BackendUnavailable", "ParameterError", "BACKENDS", "ENV_VAR",
 ]
 

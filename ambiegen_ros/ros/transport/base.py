@@ -21,7 +21,7 @@ from .params import ParameterError
 
 __all__ = [
     "TransportError", "BackendUnavailable", "ParameterError", "EndpointInfo", "Logger",
-    "Publisher", "Subscription", "Timer", "Node",
+    "Publisher", "Subscription", "Timer", "ServiceClient", "ActionClient", "Node",
     "validate_node_name", "normalize_namespace", "resolve_topic_name",
 ]
 
@@ -201,6 +201,55 @@ class Timer(abc.ABC):
         ...
 
 
+class ServiceClient(abc.ABC):
+    """Calls one ROS 2 service without blocking, as rclpy's ``Client`` does (its method names too).
+
+    ``call_async`` returns a future (``done()``, ``result()``, ``add_done_callback(fn(future))``);
+    it completes inside ``spin``/``spin_once``, never on another thread. A request sent while no
+    server is matched is lost, as on rclpy: ask ``service_is_ready()`` first.
+    """
+
+    service: str
+    srv_type: str
+
+    @abc.abstractmethod
+    def service_is_ready(self) -> bool:
+        """A server's request reader and its response writer are both matched."""
+
+    @abc.abstractmethod
+    def new_request(self, **fields: Any) -> Any:
+        """A backend-native request of this service, fields set from keyword arguments."""
+
+    @abc.abstractmethod
+    def call_async(self, request: Any) -> Any:
+        """Send ``request``; the future's result is the response."""
+
+
+class ActionClient(abc.ABC):
+    """A ROS 2 action client with the part of rclpy's ``ActionClient`` API AmbieGen uses.
+
+    ``send_goal_async(goal, feedback_callback)`` returns a future of a goal handle (``accepted``,
+    ``status``, ``get_result_async()`` -> future of the ``GetResult`` response with ``status`` and
+    ``result``, ``cancel_goal_async()``); ``feedback_callback`` receives the ``FeedbackMessage``
+    (its ``feedback`` field holds the action's feedback) of that goal only.
+    """
+
+    action_name: str
+    action_type: str
+
+    @abc.abstractmethod
+    def server_is_ready(self) -> bool:
+        """Its three services have a server, and its feedback and status topics a publisher."""
+
+    @abc.abstractmethod
+    def new_goal(self, **fields: Any) -> Any:
+        """A backend-native goal of this action, fields set from keyword arguments."""
+
+    @abc.abstractmethod
+    def send_goal_async(self, goal: Any, feedback_callback: Callable[[Any], None] | None = None) -> Any:
+        ...
+
+
 class Node(abc.ABC):
     """A ROS 2 node: parameters, pub/sub, timers, a single-threaded spin loop.
 
@@ -358,6 +407,16 @@ class Node(abc.ABC):
     @abc.abstractmethod
     def create_timer(self, period_s: float, callback: Callable[[], None]) -> Timer:
         ...
+
+    @abc.abstractmethod
+    def create_client(self, srv_type: str, service: str) -> ServiceClient:
+        """A client of service ``service`` of type ``pkg/srv/Name`` (on the DDS backend: one of
+        ``ambiegen_ros.ros.interfaces.SERVICES``)."""
+
+    @abc.abstractmethod
+    def create_action_client(self, action_type: str, action: str) -> ActionClient:
+        """A client of action ``action`` of type ``pkg/action/Name`` (on the DDS backend: one of
+        ``ambiegen_ros.ros.interfaces.ACTIONS``)."""
 
     @abc.abstractmethod
     def now_ns(self) -> int:

@@ -38,8 +38,14 @@ if _WIRE_IMPORTED:
 
 
 def ros_topic_to_dds(fqn: str) -> str:
-    """'/a/b' -> 'rt/a/b' (topics; services would use rq/rr)."""
+    """'/a/b' -> 'rt/a/b' (topics; services: ``service_topics``)."""
     return "rt" + fqn
+
+
+def service_topics(fqn: str) -> tuple[str, str]:
+    """'/a/s' -> ('rq/a/sRequest', 'rr/a/sReply'): rmw_cyclonedds_cpp's ``make_fqtopic`` with
+    ROS_SERVICE_REQUESTER_PREFIX / ROS_SERVICE_RESPONSE_PREFIX (rmw_node.cpp, ``rmw_init_cs``)."""
+    return "rq" + fqn + "Request", "rr" + fqn + "Reply"
 
 
 def dds_topic_to_ros(name: str) -> str | None:
@@ -70,9 +76,23 @@ class IdlMirror:
         self._classes: dict[str, type] = {}
         self._lock = threading.Lock()
 
-    def get(self, typename: str) -> type:
+    def get(self, typename: str, request_header: bool = False) -> type:
+        """The struct of ``typename``; with ``request_header`` the one of a service request or
+        reply sample: rmw_cyclonedds_cpp writes ``cdds_request_header_t {uint64 guid; int64 seq}``
+        before the message (Serialization.cpp, ``serialize_top_level`` of a request wrapper),
+        under the message's own type name."""
         with self._lock:
-            return self._get(typename)
+            if not request_header:
+                return self._get(typename)
+            key = typename + "#request_header"
+            cls = self._classes.get(key)
+            if cls is None:
+                self._get(typename)
+                fields = {"cdds_request_guid": _idl_t.uint64, "cdds_request_seq": _idl_t.int64}
+                fields.update((fname, self._convert(typename, fname, desc)) for fname, desc in self._fields[typename])
+                cls = self._classes[key] = make_idl_struct(typename.rsplit("/", 1)[-1] + "_",
+                                                           self._dds_name(typename), fields)
+            return cls
 
     def _get(self, typename: str) -> type:
         cls = self._classes.get(typename)
@@ -88,6 +108,11 @@ class IdlMirror:
 
     def _load(self, typename: str) -> None:
         from rosbags.typesys import get_types_from_msg
+        if "/msg/" not in typename:  # services' and actions' types: rosbags' .msg parser would file
+            store = getattr(self._registry, "store", None)  # them under pkg/srv/msg/ (interfaces.py)
+            if store is not None and typename in store.fielddefs:
+                self._fields[typename] = store.fielddefs[typename][1]
+                return
         text = self._registry.msgdef(typename)
         if isinstance(text, tuple):
             text = text[0]
@@ -147,8 +172,11 @@ def unpad_cdr(data: bytes) -> bytes:
 # --- QoS ----------------------------------------------------------------------------------------
 
 
-def dds_qos(qos: Qos, type_hash: str = "") -> "_DdsQos":
-    """Endpoint QoS as rmw_cyclonedds_cpp (Jazzy) builds it, plus the REP 2011 type hash."""
+def dds_qos(qos: Qos, type_hash: str = "", user_data: str = "") -> "_DdsQos":
+    """Endpoint QoS as rmw_cyclonedds_cpp (Jazzy) builds it, plus the REP 2011 type hash.
+
+    ``user_data`` goes before the hash, as rmw_cyclonedds_cpp puts a service endpoint's
+    ``clientid=...;`` / ``serviceid=...;`` (``create_readwrite_qos``)."""
     policies = [
         Policy.History.KeepAll if qos.keep_all else Policy.History.KeepLast(max(1, int(qos.depth))),
         Policy.Reliability.Reliable(max_blocking_time=dds_infinity) if qos.reliable
@@ -163,9 +191,22 @@ def dds_qos(qos: Qos, type_hash: str = "") -> "_DdsQos":
             max_samples=-1, max_instances=-1, max_samples_per_instance=-1))
     else:
         policies.append(Policy.Durability.Volatile)
-    if type_hash:
-        policies.append(Policy.Userdata(f"typehash={type_hash};".encode("ascii")))
+    text = user_data + (f"typehash={type_hash};" if type_hash else "")
+    if text:
+        policies.append(Policy.Userdata(text.encode("ascii")))
     return _DdsQos(*policies)
+
+
+def user_data_value(dq, key: str) -> str | None:
+    """The value of ``key`` in a discovered endpoint's USER_DATA (``k=v;`` pairs), None if absent."""
+    ud = dq[Policy.Userdata] if dq is not None else None
+    if ud is None:
+        return None
+    for item in bytes(ud.data).decode("utf-8", "replace").split(";"):
+        k, sep, v = item.partition("=")
+        if sep and k == key:
+            return v
+    return None
 
 
 def qos_from_dds(dq) -> tuple[Qos, bool, str]:

@@ -22,7 +22,8 @@ from typing import Any, Callable, Sequence
 from ambiegen_ros.ros.qos import Qos
 
 from . import signals
-from .base import BackendUnavailable, EndpointInfo, Node, Publisher, Subscription, Timer
+from .base import (ActionClient, BackendUnavailable, EndpointInfo, Node, Publisher, ServiceClient, Subscription,
+                   Timer)
 from .discovery import options_from_env
 
 
@@ -220,6 +221,42 @@ class _RclpySubscription(Subscription):
         self.raw = raw
 
 
+class _RclpyServiceClient(ServiceClient):
+    """rclpy's own client; the seam adds only how a request is made."""
+
+    def __init__(self, client, srv_class, srv_type: str):
+        self._client, self._class = client, srv_class
+        self.service, self.srv_type = client.srv_name, srv_type
+
+    def service_is_ready(self) -> bool:
+        return self._client.service_is_ready()
+
+    def new_request(self, **fields: Any) -> Any:
+        return self._class.Request(**fields)
+
+    def call_async(self, request: Any) -> Any:
+        return self._client.call_async(request)
+
+
+class _RclpyActionClient(ActionClient):
+    """rclpy's own ``ActionClient`` (its futures and goal handles); the seam adds how a goal is made."""
+
+    def __init__(self, node, action_class, action_type: str, action: str):
+        from rclpy.action import ActionClient as RclpyActionClient
+
+        self._client, self._class = RclpyActionClient(node, action_class, action), action_class
+        self.action_name, self.action_type = action, action_type
+
+    def server_is_ready(self) -> bool:
+        return self._client.server_is_ready()
+
+    def new_goal(self, **fields: Any) -> Any:
+        return self._class.Goal(**fields)
+
+    def send_goal_async(self, goal: Any, feedback_callback: Callable[[Any], None] | None = None) -> Any:
+        return self._client.send_goal_async(goal, feedback_callback=feedback_callback)
+
+
 class _RclpyTimer(Timer):
     def __init__(self, timer, period_s: float):
         self._timer = timer
@@ -335,6 +372,17 @@ class RclpyNode(Node):
 
     def create_timer(self, period_s: float, callback: Callable[[], None]) -> Timer:
         return _RclpyTimer(self._node.create_timer(period_s, callback), period_s)
+
+    def create_client(self, srv_type: str, service: str) -> ServiceClient:
+        from rosidl_runtime_py.utilities import get_service
+
+        cls = get_service(srv_type)
+        return _RclpyServiceClient(self._node.create_client(cls, service), cls, srv_type)
+
+    def create_action_client(self, action_type: str, action: str) -> ActionClient:
+        from rosidl_runtime_py.utilities import get_action
+
+        return _RclpyActionClient(self._node, get_action(action_type), action_type, action)
 
     def now_ns(self) -> int:
         return int(self._node.get_clock().now().nanoseconds)
