@@ -340,7 +340,7 @@ class SutAdapter:
                        self.idle)
         n.logger.info(
             f"{self.worker_id}: {self.problem_name} scenarios -> {', '.join(f'{k}={v}' for k, v in self.topics.items() if v)}"
-            f" (time_scale {self.time_scale:g}, stamp_clock {self.stamp_clock})"
+            f" (time_scale {self.time_scale:g}, stamp_clock {self.stamp_clock}; {n.middleware})"
         )
 
     # --- worker side ----------------------------------------------------------------------------

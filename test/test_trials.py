@@ -338,13 +338,17 @@ def test_a_node_started_without_its_name_is_found_by_its_executable(tmp_path):
 
     exe = tmp_path / "controller_server"
     exe.symlink_to(sys.executable)
-    named = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)", "--ros-args", "-r",
-                              "__node:=planner_server"])
-    plain = subprocess.Popen([str(exe), "-c", "import time; time.sleep(60)"])
+    up = "import time; print('up', flush=True); time.sleep(60)"
+    named = subprocess.Popen([sys.executable, "-c", up, "--ros-args", "-r", "__node:=planner_server"],
+                             stdout=subprocess.PIPE, text=True)
+    plain = subprocess.Popen([str(exe), "-c", up], stdout=subprocess.PIPE, text=True)
     try:
+        # Until a child has exec'd, /proc shows its parent's command line: wait for each to speak.
+        assert named.stdout.readline() == plain.stdout.readline() == "up\n"
         assert node_name(named.pid) == "planner_server"
         assert node_name(plain.pid) == "controller_server"
     finally:
         for proc in (named, plain):
             proc.kill()
             proc.wait()
+            proc.stdout.close()
