@@ -10,7 +10,10 @@ Nav2's place (a STAND-IN: one command per scan, 10 Hz, where Nav2's controller s
 CPU time of each process comes from /proc every 2 s; a part's share is its CPU seconds over the
 wall seconds the runs took. Writes ``bench/results/ours_cpu[_TAG].json`` with ``ours_cores``
 (adapter + world + recorder). ``--transport`` sets ``AMBIEGEN_TRANSPORT`` for the nodes (default:
-auto, rclpy where a sourced ROS 2 has it). The real-time Nav2 figure is ``bench/nav2_cpu.py``'s.
+auto, rclpy where a sourced ROS 2 has it). ``--crowd N`` adds N idle DDS endpoints (half publishers,
+half subscribers, from this process) standing in for the size of Nav2's graph: its 25-odd nodes
+each offer parameter and lifecycle services, so a graph query meets hundreds of endpoints. The
+real-time Nav2 figure is ``bench/nav2_cpu.py``'s.
 """
 from __future__ import annotations
 
@@ -82,11 +85,27 @@ class Sampler(threading.Thread):
         return core_shares(self.first, self.last, self.names, wall)
 
 
+def crowd(endpoints: int):
+    """A DDS node holding ``endpoints`` idle endpoints, like the services of Nav2's nodes (None: 0)."""
+    if endpoints <= 0:
+        return None
+    from ambiegen_ros.ros.qos import DEFAULT
+    from ambiegen_ros.ros.transport.dds_backend import DdsNode
+
+    node = DdsNode("crowd")
+    for i in range(endpoints // 2):
+        node.create_publisher("std_msgs/msg/String", f"/crowd/reply_{i}", DEFAULT)
+        node.create_subscription("std_msgs/msg/String", f"/crowd/request_{i}", lambda msg: None, DEFAULT)
+    return node
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--suite", default=str(HERE.parent / "docs/results/nav2/mppi_hazards_passes_suite.json"))
     ap.add_argument("--count", type=int, default=6, help="scenarios of the suite run (default 6)")
     ap.add_argument("--transport", choices=("rclpy", "dds"), default=None)
+    ap.add_argument("--crowd", type=int, default=0, metavar="N",
+                    help="N idle DDS endpoints standing in for Nav2's graph (default 0; Nav2's is 600-odd)")
     ap.add_argument("--tag", default="")
     args = ap.parse_args(argv)
     if args.transport:
@@ -106,6 +125,7 @@ def main(argv: list[str] | None = None) -> int:
         settings = TrialSettings(stack="nd", results=Path(tmp) / "rows.jsonl", bags=Path(tmp) / "bags", repeat=1)
         settings.bags.mkdir()
         prepared = [prepare(StackConfig("nd", ()), "nd", None, 1.0, settings.bags)]
+        crowded = crowd(args.crowd)
         sampler = Sampler()
         sampler.start()
         t0 = time.monotonic()
@@ -114,6 +134,8 @@ def main(argv: list[str] | None = None) -> int:
         sampler.stop.set()
         sampler.join()
         rows = TrialLog(settings.results).rows()
+        if crowded is not None:
+            crowded.shutdown()
     shares = sampler.shares(wall)
     ours = sum(shares.get(name, 0.0) for name in OURS)
     verdicts: dict[str, int] = defaultdict(int)
@@ -121,7 +143,8 @@ def main(argv: list[str] | None = None) -> int:
         verdicts[row.get("failure_kind") or "pass"] += 1
     figures = {"transport": backend, "scenarios": len(suite.entries), "wall_s": round(wall, 1),
                "ours_cores": round(ours, 3), "shares": shares, "verdicts": dict(verdicts),
-               "stand_in": "nd_driver in Nav2's place (10 Hz commands)", "cpus": os.cpu_count()}
+               "stand_in": "nd_driver in Nav2's place (10 Hz commands)", "crowd_endpoints": args.crowd,
+               "cpus": os.cpu_count()}
     report("ours_cpu", args.tag, figures)
     return 0
 

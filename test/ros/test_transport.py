@@ -631,7 +631,8 @@ def test_timers_spin_once_and_shutdown(dds_env, ros_domain):
 
 def test_topic_names_follow_endpoints_that_come_and_go(dds_env, ros_domain):
     """The node keeps its list from what changed between two calls (issue 58: the recorder asks
-    once a second beside Nav2's hundreds of endpoints); a publisher that leaves takes its topic."""
+    once a second beside Nav2's hundreds of endpoints, the adapter twice a second whether its
+    status streams still have publishers); a publisher that leaves takes its topic."""
     node = dds_env(ros_domain, "watcher")
     other = dds_env(ros_domain, "other")
 
@@ -643,9 +644,16 @@ def test_topic_names_follow_endpoints_that_come_and_go(dds_env, ros_domain):
     assert names()["/come_and_go"] == [STRING] and "/come_and_go" in names()  # asked again: still there
     other.create_subscription("std_msgs/msg/Int32", "/stays", lambda m: None, DEFAULT)
     assert node.spin_until(lambda: "/stays" in names(), PATIENCE)
+    (info,) = node.publishers_info("/come_and_go")
+    assert (info.typename, info.qos.reliable, info.node_name) == (STRING, DEFAULT.reliable, "other")
+    assert node.publishers_info("/stays") == []  # a subscriber is no publisher
     pub.destroy()
     assert node.spin_until(lambda: "/come_and_go" not in names(), PATIENCE)
+    assert node.publishers_info("/come_and_go") == []
     assert names()["/stays"] == ["std_msgs/msg/Int32"]
+    again = other.create_publisher(STRING, "/come_and_go", DEFAULT)  # the same topic, a new endpoint
+    assert node.spin_until(lambda: len(node.publishers_info("/come_and_go")) == 1, PATIENCE)
+    again.destroy()
 
 
 def test_in_process_pubsub_raw_and_bad_payload(dds_env, ros_domain):

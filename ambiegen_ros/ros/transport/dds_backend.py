@@ -309,9 +309,8 @@ class DdsNode(Node):
         self._pubs: set = set()
         self._subs: list[DdsSubscription] = []
         self._timers: list[DdsTimer] = []
-        self._builtin: dict[str, tuple[Any, Any]] = {}
-        self._endpoint_changes: list[tuple[Any, Any]] = []  # readers of what changed (topic_names_and_types)
-        self._known_endpoints: dict[tuple[int, int], tuple[str, str]] | None = None
+        self._endpoint_changes: list[tuple[bool, Any, Any]] = []  # (publications?, reader, its unread samples)
+        self._known_endpoints: dict[tuple[bool, int], Any] | None = None  # the graph's endpoints, kept up to date
         self._stop = False
         self._closed = False
         self._graph_writer = None
@@ -467,39 +466,32 @@ class DdsNode(Node):
         return self._registry.new(typename, **fields)
 
     # -- graph -----------------------------------------------------------------------------------
-    def _builtin_samples(self, which: str) -> list:
-        self._check_open()
-        if which not in self._builtin:
-            topic = BuiltinTopicDcpsPublication if which == "pub" else BuiltinTopicDcpsSubscription
-            rd = BuiltinDataReader(self._dp, topic)
-            cond = ReadCondition(rd, SampleState.Any | ViewState.Any | InstanceState.Alive)
-            self._builtin[which] = (rd, cond)
-        rd, cond = self._builtin[which]
-        return rd.read(N=100_000, condition=cond)
-
-    def topic_names_and_types(self) -> list[tuple[str, list[str]]]:
-        """From endpoints kept up to date by what changed since the last call: converting every
-        endpoint's QoS to Python on each call cost a recorder beside Nav2 (hundreds of endpoints,
-        asked once a second) three quarters of its CPU."""
+    def _endpoints(self) -> list[tuple[bool, Any]]:
+        """Every endpoint of the graph as (a publication?, its builtin sample), kept up to date from what
+        changed since the last call: converting every endpoint's QoS to Python on each graph query cost
+        a recorder beside Nav2 (hundreds of endpoints, asked once a second) three quarters of its CPU."""
         self._check_open()
         if self._known_endpoints is None:
             self._known_endpoints = {}
-            for topic in (BuiltinTopicDcpsPublication, BuiltinTopicDcpsSubscription):
+            for is_pub, topic in ((True, BuiltinTopicDcpsPublication), (False, BuiltinTopicDcpsSubscription)):
                 rd = BuiltinDataReader(self._dp, topic)
                 self._endpoint_changes.append(
-                    (rd, ReadCondition(rd, SampleState.NotRead | ViewState.Any | InstanceState.Any)))
-        for rd, cond in self._endpoint_changes:
+                    (is_pub, rd, ReadCondition(rd, SampleState.NotRead | ViewState.Any | InstanceState.Any)))
+        for is_pub, rd, cond in self._endpoint_changes:
             for ep in rd.read(N=100_000, condition=cond):
-                key = (id(rd), ep.sample_info.instance_handle)
+                key = (is_pub, ep.sample_info.instance_handle)
                 if ep.sample_info.valid_data and ep.sample_info.instance_state == InstanceState.Alive:
-                    self._known_endpoints[key] = (ep.topic_name, ep.type_name)
+                    self._known_endpoints[key] = ep
                 else:  # the endpoint left (its sample carries no topic)
                     self._known_endpoints.pop(key, None)
+        return [(is_pub, ep) for (is_pub, _), ep in self._known_endpoints.items()]
+
+    def topic_names_and_types(self) -> list[tuple[str, list[str]]]:
         found: dict[str, set[str]] = {}
-        for topic_name, type_name in self._known_endpoints.values():
-            ros = dds_topic_to_ros(topic_name)
+        for _, ep in self._endpoints():
+            ros = dds_topic_to_ros(ep.topic_name)
             if ros is not None:
-                found.setdefault(ros, set()).add(dds_type_to_ros(type_name))
+                found.setdefault(ros, set()).add(dds_type_to_ros(ep.type_name))
         return [(name, sorted(types)) for name, types in sorted(found.items())]
 
     def _refresh_endpoint_nodes(self) -> None:
@@ -523,7 +515,7 @@ class DdsNode(Node):
     def publishers_info(self, topic: str) -> list[EndpointInfo]:
         fqn = self.resolve_topic_name(topic)
         dds_name = ros_topic_to_dds(fqn)
-        eps = [ep for ep in self._builtin_samples("pub") if ep.topic_name == dds_name]
+        eps = [ep for is_pub, ep in self._endpoints() if is_pub and ep.topic_name == dds_name]
         if eps:
             self._refresh_endpoint_nodes()
         out = []
@@ -636,7 +628,6 @@ class DdsNode(Node):
         self._subs.clear()
         self._pubs.clear()
         self._timers.clear()
-        self._builtin.clear()
         self._endpoint_changes.clear()
         self._known_endpoints = None
         self._topics.clear()
