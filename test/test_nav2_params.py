@@ -3,6 +3,7 @@
 not by name, rates follow the time scale, and nothing of theirs is lost or overwritten."""
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -86,3 +87,29 @@ def test_the_command_writes_once_and_says_how_to_start_nav2(tmp_path):
                               "-o", str(tmp_path / "x.yaml")], capture_output=True, text=True, timeout=120)
     assert missing.returncode == 2 and "params_file: cannot read" in missing.stderr
     assert nav2_params.package_file(*nav2_params.OVERLAY_FILE) is not None
+
+
+def test_the_command_writes_the_hardened_stack_with_its_tree(tmp_path):
+    """``PARAMS+fix:hardened`` (issue 59): the params file and the derived tree a Nav2 user's bringup takes."""
+    folder = tmp_path / "prefix" / "share" / "nav2_bt_navigator" / "behavior_trees"
+    folder.mkdir(parents=True)  # a stand-in for Jazzy's installed tree (no Nav2 here)
+    (folder / "navigate_to_pose_w_replanning_and_recovery.xml").write_text(
+        '<root BTCPP_format="4"><BehaviorTree ID="MainTree"><RecoveryNode number_of_retries="6" '
+        'name="NavigateRecovery"><FollowPath/></RecoveryNode></BehaviorTree></root>')
+    theirs, out = tmp_path / "theirs.yaml", tmp_path / "hardened.yaml"
+    theirs.write_text(yaml.safe_dump(THEIRS))
+    env = {**os.environ, "AMENT_PREFIX_PATH": str(tmp_path / "prefix")}
+    run = lambda: subprocess.run(  # noqa: E731
+        [sys.executable, "-m", "ambiegen_ros.cli", "nav2-params", f"{theirs}+fix:hardened", "-o", str(out)],
+        capture_output=True, text=True, timeout=120, env=env)
+    first = run()
+    assert first.returncode == 0, first.stderr
+    written = yaml.safe_load(out.read_text())
+    tree = Path(written["bt_navigator"]["ros__parameters"]["default_nav_to_pose_bt_xml"])
+    assert tree.parent == tmp_path and f"behaviour tree: {tree}" in first.stdout
+    assert 'number_of_retries="1000"' in tree.read_text() and "<Timeout" in tree.read_text()
+    assert written["local_costmap"]["local_costmap"]["ros__parameters"]["plugins"][0] == "static_layer"
+    assert "fix:hardened" in out.read_text().splitlines()[0]  # the header says what was merged
+    trees_before = sorted(tmp_path.glob("*.xml"))
+    again = run()
+    assert again.returncode == 2 and "exists" in again.stderr and sorted(tmp_path.glob("*.xml")) == trees_before

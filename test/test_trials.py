@@ -154,6 +154,51 @@ def test_a_fix_has_the_last_word_and_the_world_part_is_recorded(tmp_path):
         configs.prepare(configs.StackConfig("x", ()), "bringup", None, 1.0, tmp_path)
 
 
+def fake_installed_tree(tmp_path, monkeypatch):
+    """A stand-in for Jazzy's installed navigate_to_pose tree (no Nav2 here), on AMENT_PREFIX_PATH."""
+    folder = tmp_path / "prefix" / "share" / "nav2_bt_navigator" / "behavior_trees"
+    folder.mkdir(parents=True)
+    (folder / "navigate_to_pose_w_replanning_and_recovery.xml").write_text(
+        '<root BTCPP_format="4"><BehaviorTree ID="MainTree"><RecoveryNode number_of_retries="6" '
+        'name="NavigateRecovery"><FollowPath/><RoundRobin><Wait/><BackUp/></RoundRobin></RecoveryNode>'
+        '</BehaviorTree></root>')
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(tmp_path / "prefix"))
+
+
+def test_the_hardened_fix_is_the_fixes_that_worked_in_order(tmp_path, monkeypatch):
+    """``fix:hardened`` (issue 59) merges walls_static_local, then doorway_patient: the same stack as
+    naming the two, the map's walls in the local costmap and the patient tree."""
+    import xml.etree.ElementTree as ET
+
+    fake_installed_tree(tmp_path, monkeypatch)
+    base = tmp_path / "nav2.yaml"
+    base.write_text("local_costmap:\n  local_costmap:\n    ros__parameters:\n"
+                    "      plugins: [voxel_layer, inflation_layer]\n")
+    hardened = configs.prepare(configs.parse_config(f"{base}+fix:hardened"), "bringup", None, 1.0, tmp_path / "a")
+    both = configs.prepare(configs.parse_config(f"{base}+fix:walls_static_local+fix:doorway_patient"), "bringup",
+                           None, 1.0, tmp_path / "b")
+    local = hardened.params["local_costmap"]["local_costmap"]["ros__parameters"]
+    assert local["plugins"][0] == "static_layer" and "ambiegen_fixes" not in hardened.params
+
+    def without_tree(params):
+        bt = params["bt_navigator"]["ros__parameters"]
+        return {**params, "bt_navigator": {"ros__parameters": {k: v for k, v in bt.items()
+                                                               if k != "default_nav_to_pose_bt_xml"}}}
+
+    assert without_tree(hardened.params) == without_tree(both.params)
+    assert Path(hardened.behavior_tree).read_text() == Path(both.behavior_tree).read_text()
+    root = ET.fromstring(Path(hardened.behavior_tree).read_text().split("-->", 1)[1])
+    assert root.find("BehaviorTree/Timeout").get("msec") == "180000"
+    assert root.find(".//RecoveryNode").get("number_of_retries") == "1000"
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("ambiegen_fixes: walls_static_local\n")
+    with pytest.raises(BadInput, match="a list of the package's fix names"):
+        configs.prepare(configs.parse_config(f"{base}+{bad}"), "bringup", None, 1.0, tmp_path / "c")
+    bad.write_text("ambiegen_fixes: [teleport]\n")
+    with pytest.raises(BadInput, match="no such fix"):
+        configs.prepare(configs.parse_config(f"{base}+{bad}"), "bringup", None, 1.0, tmp_path / "c")
+
+
 def test_a_tree_fix_changes_only_what_it_says(tmp_path):
     tree = tmp_path / "default.xml"
     tree.write_text('<root BTCPP_format="4"><BehaviorTree ID="MainTree"><RecoveryNode number_of_retries="6" '

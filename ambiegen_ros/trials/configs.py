@@ -14,7 +14,9 @@ the world (``robot_world: {ros__parameters: {sim: {fov_deg: 360.0, beams: 361}}}
 laser sees all round) or, on our ND stack, the driver (``nd_driver: ...``). A relative path to a
 behaviour tree (a string ending in ``.xml``) is taken from the file's own folder, so a fix and its
 tree travel together; a fix that changes Nav2's own tree says how (``trees``), and the tree is
-derived from the installed one.
+derived from the installed one. A fix may be made of fixes (``ambiegen_fixes: [NAME, ...]``,
+merged in order before its own keys): ``fix:hardened`` is the stack Nav2's engineers would ship
+for our robot, the fixes that worked and nothing else.
 
 The merged file is written once per content (``<label>.<digest>.params.yaml``) and its digest is
 recorded in every row: a label run with other params is refused, never mixed.
@@ -31,6 +33,7 @@ from typing import Any
 from ..core.errors import BadInput
 
 FIX_PREFIX = "fix:"
+FIXES_KEY = "ambiegen_fixes"  # a fix made of the package's fixes, by name
 FIXES_DIR = ("config", "nav2", "fixes")  # under the package's share dir (or the repo)
 LABEL = re.compile(r"[A-Za-z0-9_.+-]{1,60}")
 NAV2_STACKS = ("bringup", "ours", "external")
@@ -107,6 +110,24 @@ def _with_trees(tree: Any, folder: Path) -> Any:
     return tree
 
 
+def _layers(path: Path, within: tuple[Path, ...] = ()) -> list[tuple[dict, Path]]:
+    """A further file's layers, in merge order: the fixes it is made of (``FIXES_KEY``), each expanded,
+    then its own keys; with the folder each came from."""
+    from ..nav2_params import load_yaml
+
+    layer = load_yaml(path, "params file")
+    names = layer.pop(FIXES_KEY, None) or []
+    if not isinstance(names, list) or not all(isinstance(n, str) and n for n in names):
+        raise BadInput(f"{path}: {FIXES_KEY} is a list of the package's fix names")
+    out: list[tuple[dict, Path]] = []
+    for name in names:
+        part = resolve(name if name.startswith(FIX_PREFIX) else FIX_PREFIX + name)
+        if part == path or part in within:
+            raise BadInput(f"{path}: {FIXES_KEY} names {name}, which contains it")
+        out += _layers(part, within + (path,))
+    return out + ([(layer, path.parent)] if layer else [])
+
+
 def _flat(tree: dict, prefix: str = "") -> dict:
     out: dict = {}
     for key, value in tree.items():
@@ -120,7 +141,7 @@ def _flat(tree: dict, prefix: str = "") -> dict:
 def merged(config: StackConfig, stack: str, overlay: str | None, time_scale: float) -> tuple[dict, list]:
     """The configuration's params tree (see the module docstring for the order), and the behaviour-tree
     changes its files ask for (``trees.KEY``: (spec, the file's folder), in order)."""
-    from ..nav2_params import load_yaml, merge_overlay, merged_params, scale_nav2_rates
+    from ..nav2_params import merge_overlay, merged_params, scale_nav2_rates
     from .trees import KEY
 
     paths = [resolve(f) for f in config.files]
@@ -140,8 +161,9 @@ def merged(config: StackConfig, stack: str, overlay: str | None, time_scale: flo
         else:
             params, rest = {}, paths
         for path in rest:
-            layer = take(load_yaml(path, "params file"), path.parent)
-            params = merge_overlay(params, scale_nav2_rates(layer, time_scale) if stack in NAV2_STACKS else layer)
+            for own, folder in _layers(path):
+                layer = take(own, folder)
+                params = merge_overlay(params, scale_nav2_rates(layer, time_scale) if stack in NAV2_STACKS else layer)
         return params, trees
     except ValueError as exc:
         raise BadInput(str(exc)) from None
@@ -173,5 +195,5 @@ def prepare(config: StackConfig, stack: str, overlay: str | None, time_scale: fl
     return Prepared(config, params, path, digest, world, tree, top_speed(params) if stack in NAV2_STACKS else None)
 
 
-__all__ = ["FIX_PREFIX", "NAV2_STACKS", "STACKS", "Prepared", "StackConfig", "fixes_dir", "merged", "parse_config",
+__all__ = ["FIXES_KEY", "FIX_PREFIX", "NAV2_STACKS", "STACKS", "Prepared", "StackConfig", "fixes_dir", "merged", "parse_config",
            "prepare", "resolve"]
