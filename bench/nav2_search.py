@@ -9,7 +9,8 @@ Each run is one ``nav2_campaign.launch.py`` campaign on the maps of ``config/rob
 (goal (14, 14); ``route_cap`` 100 keeps a search off NavFn's known cap) with Nav2's own verdicts:
 ``--controller dwb`` = our five Nav2 nodes with ``config/nav2/pioneer_navfn_dwb.yaml`` at time scale
 2, ``mppi`` = Jazzy's ``nav2_params.yaml`` + the overlay through ``navigation_launch.py`` at real
-time (the largest time scales that keep real time's verdicts on this 2-core machine). The campaign
+time (the largest time scales that keep real time's verdicts on this 2-core machine), ``hardened`` =
+``mppi`` with ``fix:hardened`` (issue 59: the map's walls in the local costmap, the patient tree). The campaign
 stops sending maps after ``--nav2-hours`` of simulated time (its ``execution_budget`` in wall
 seconds, at the time scale); the map in flight then finishes. From its bag: Nav2 runs, their simulated time, failures, known failures (not counted), the
 distinct new certified failures (the campaign gallery's count: every failure has a clearance route,
@@ -44,10 +45,24 @@ OUT = REPO / "bench" / "results" / "nav2_search.jsonl"
 DEFAULT_CONFIG = "config/robot_small.yaml"
 MIN_RUNS = 3  # runs a side before a test is printed (issue 29's minimum)
 CLAIM_RUNS = 10  # runs a side before it is a claim: "beats random" is about a distribution
+JAZZY_PARAMS = "{jazzy}/share/nav2_bringup/params/nav2_params.yaml"
 CONTROLLERS = {  # controller: (launch arguments, time scale)
     "dwb": ({"nav2": "ours"}, 2.0),
-    "mppi": ({"nav2": "bringup", "params_file": "{jazzy}/share/nav2_bringup/params/nav2_params.yaml"}, 1.0),
+    "mppi": ({"nav2": "bringup", "params_file": JAZZY_PARAMS}, 1.0),
+    # Jazzy's MPPI stack with fix:hardened (issue 59), merged as `ambiegen compare` merges it
+    "hardened": ({"nav2": "bringup", "params_file": JAZZY_PARAMS + "+fix:hardened"}, 1.0),
 }
+
+
+def hardened_params(spec: str, jazzy: Path, out_dir: Path) -> dict:
+    """``FILE+fix:...`` made into one params file (our overlay, the fixes, the derived tree from the
+    installed nav2_bt_navigator) for the launch, which then merges nothing more."""
+    from ambiegen_ros.nav2_params import OVERLAY_FILE, package_file
+    from ambiegen_ros.trials.configs import parse_config, prepare
+
+    os.environ.setdefault("AMENT_PREFIX_PATH", str(jazzy))  # where the tree to derive from is installed
+    ready = prepare(parse_config(spec), "bringup", str(package_file(*OVERLAY_FILE)), 1.0, out_dir)
+    return {"params_file": str(ready.path), "params_overlay": "none"}
 
 
 def run_one(args, install: Path, logs: Path) -> dict:
@@ -56,6 +71,8 @@ def run_one(args, install: Path, logs: Path) -> dict:
     extra, k = CONTROLLERS[args.controller]
     extra = {key: value.format(jazzy=Path(args.setup).parent) for key, value in extra.items()}
     out_dir = Path(tempfile.mkdtemp(prefix=f"{args.controller}_{args.algorithm}_s{args.seed}_", dir=logs))
+    if "+" in extra.get("params_file", ""):
+        extra.update(hardened_params(extra["params_file"], Path(args.setup).parent, out_dir))
     budget = args.nav2_hours * 3600.0 / k
     launch = "ros2 launch ambiegen_ros nav2_campaign.launch.py " + " ".join(f"{key}:={value}" for key, value in dict(
         algorithm=args.algorithm, mode=args.mode, seed=args.seed, execution_budget=budget,
