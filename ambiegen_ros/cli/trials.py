@@ -1,4 +1,5 @@
-"""`ambiegen rerun` and `ambiegen compare`: a suite N times on a stack, on one or more params files.
+"""`ambiegen rerun` and `ambiegen compare`: a suite N times on a stack, on one or more params files;
+`ambiegen stack-search`: a search whose every scenario runs on a supervised stack.
 
 The work is ``ambiegen_ros.trials``; this module turns flags into its calls and prints its tables.
 """
@@ -19,21 +20,31 @@ STACK_HELP = ("nd: our Nearness Diagram robot on Nav2's topics (no ROS needed); 
               "sourced ROS 2 Jazzy)")
 
 
-def _common(p: argparse.ArgumentParser, many: bool) -> None:
-    from ..core.names import PROFILES
+def _common(p: argparse.ArgumentParser, many: bool, search: bool = False) -> None:
+    from ..core.names import ALGORITHMS, PROFILES
     from ..trials.configs import STACKS
     from .common import add_config_option
 
-    p.add_argument("suite", nargs="+", metavar="SUITE", help="suite files (JSON: a search's suite.json, a write-up's "
-                   "*_suite.json, one scenario) or a campaign's MCAP (its certified failures)")
+    if search:
+        p.add_argument("--algorithm", choices=ALGORITHMS, default="ga", help="the search (default ga; random: "
+                       "random sampling of what the problem allows, the baseline)")
+        p.add_argument("--hours", type=float, required=True, metavar="H", help="simulated hours of the stack to "
+                       "spend: no scenario is sent after H x 3600 / --time-scale wall seconds (the one running "
+                       "finishes)")
+        p.add_argument("--evaluations", type=int, default=100_000, metavar="N", help="at most N scenarios asked "
+                       "(default 100000: the hours decide)")
+    else:
+        p.add_argument("suite", nargs="+", metavar="SUITE", help="suite files (JSON: a search's suite.json, a "
+                       "write-up's *_suite.json, one scenario) or a campaign's MCAP (its certified failures)")
     p.add_argument("--stack", required=True, choices=STACKS, help=STACK_HELP)
     p.add_argument("--params", action="append", default=[], metavar="[LABEL=]FILE[+FILE...]",
                    help=("a configuration: params files merged in order (the first is the stack's, e.g. Jazzy's "
                          "nav2_params.yaml; the others overlays; fix:NAME is the package's config/nav2/fixes/NAME.yaml)"
                          + ("; give two or more, the first is the baseline" if many else
                             "; one (our ND stack: optional)")))
-    p.add_argument("--repeat", type=int, default=3, metavar="N", help="runs of each scenario on each configuration "
-                   "(default 3); runs already in --results count")
+    if not search:
+        p.add_argument("--repeat", type=int, default=3, metavar="N", help="runs of each scenario on each "
+                       "configuration (default 3); runs already in --results count")
     p.add_argument("--results", required=True, metavar="FILE.jsonl", help="the results file: one row per run, "
                    "appended (never rewritten); the command resumes from it")
     p.add_argument("--bags", metavar="DIR", help="where each configuration's bag, node logs and merged params go, "
@@ -46,7 +57,8 @@ def _common(p: argparse.ArgumentParser, many: bool) -> None:
                    "suite's or --config's)")
     p.add_argument("--time-scale", type=float, default=1.0, help="Nav2 stacks: simulated seconds per wall second "
                    "(default 1: real time; Nav2's loop rates are scaled to it)")
-    p.add_argument("--seed", type=int, default=0, help="the world's seed (laser noise); recorded (default 0)")
+    p.add_argument("--seed", type=int, default=0, help="the world's seed (laser noise)" + (" and the search's"
+                   if search else "") + "; recorded (default 0)")
     p.add_argument("--fault-speed", type=float, metavar="M/S", help="a contact with a person is charged to the robot "
                    "only when it moves towards them faster than this (default: the world's, 0.01 m/s)")
     p.add_argument("--overlay", default="", metavar="FILE.yaml|none", help="Nav2 stacks: merged on the first params "
@@ -69,7 +81,8 @@ def _common(p: argparse.ArgumentParser, many: bool) -> None:
     p.add_argument("--our-transport", choices=("dds",), default=None, help="dds: run robot_world, the recorder "
                    "and the adapter on Cyclone DDS from PyPI, without rclpy's executor (less CPU: docs/speed.md), "
                    "beside a Nav2 on rmw_cyclonedds_cpp (default: the transport of this command)")
-    p.add_argument("--no-run", action="store_true", help="run nothing: the tables of what --results holds")
+    if not search:
+        p.add_argument("--no-run", action="store_true", help="run nothing: the tables of what --results holds")
 
 
 def register(sub) -> None:
@@ -91,6 +104,17 @@ def register(sub) -> None:
                                    "of the runs side by side for every scenario whose verdict changed.")
     _common(p, many=True)
     p.set_defaults(func=cmd_trials, many=True)
+    p = sub.add_parser("stack-search", help="search a stack for failures as a campaign does, with the stack supervised: a "
+                                      "crash is a finding, a part of ours that dies is run again, the night goes on",
+                       description="AmbieGen's search (--config: its settings and problem) in the loop with a stack: "
+                                   "each scenario it asks runs as `rerun` runs one, with the stack watched and "
+                                   "restarted (a process of the stack that dies or hangs: FAIL(sut_crashed), run once "
+                                   "more on a fresh stack; one of ours: an error record, and the scenario again). "
+                                   "Every run is a row of --results; at the end the table and a picture of each "
+                                   "failed scenario. A stopped search does not resume: run it again with a new "
+                                   "--results.")
+    _common(p, many=False, search=True)
+    p.set_defaults(func=cmd_search, many=False)
 
 
 def _settings(args, results: Path):
@@ -110,7 +134,8 @@ def _settings(args, results: Path):
         raise BadInput(f"--our-transport dds speaks rmw_cyclonedds_cpp's services to Nav2, which would run on "
                        f"{rmw or 'the default RMW (Fast DDS)'}: export RMW_IMPLEMENTATION=rmw_cyclonedds_cpp")
     bags = Path(args.bags) if args.bags else results.parent / f"{results.stem}_bags"
-    return TrialSettings(stack=args.stack, results=results, bags=bags, repeat=args.repeat, time_scale=args.time_scale,
+    return TrialSettings(stack=args.stack, results=results, bags=bags, repeat=getattr(args, "repeat", 1),
+                         time_scale=args.time_scale,
                          seed=args.seed, domain_id=args.domain_id, known_failures=str(known) if known else None,
                          fault_speed=args.fault_speed, early_verdicts=args.early_verdicts,
                          start_timeout=args.start_timeout, hang_after=args.hang_after,
@@ -193,4 +218,67 @@ def cmd_trials(args) -> int:
         print(f"written: {written['md']}, {written['json']}")
         for picture in written.get("pictures", []):
             print(f"picture: {picture}")
+    return code
+
+
+def cmd_search(args) -> int:
+    from ..core.config import load_config_file
+    from ..core.search import Search
+    from ..run_config import make_run
+    from ..trials import report
+    from ..trials.configs import NAV2_STACKS, StackConfig, parse_config, prepare
+    from ..trials.rows import TrialLog
+    from ..trials.runner import StackStopped, utc_stamp
+    from ..trials.search import run_search
+    from ..trials.suite import Entry, Suite
+
+    if not args.hours > 0:
+        raise BadInput("--hours: must be > 0")
+    if not args.time_scale > 0:
+        raise BadInput("--time-scale: must be > 0")
+    if len(args.params) > 1:
+        raise BadInput("stack-search: one --params (compare runs several configurations on a suite)")
+    if not args.params and args.stack in NAV2_STACKS:
+        raise BadInput(f"--stack {args.stack}: name your Nav2 params with --params (e.g. Jazzy's "
+                       "/opt/ros/jazzy/share/nav2_bringup/params/nav2_params.yaml)")
+    config = parse_config(args.params[0]) if args.params else StackConfig("nd", ())
+    results = Path(args.results)
+    if results.exists():
+        raise BadInput(f"--results {results} exists: a search starts a file of its own (never appended to)")
+    problem, search_settings = make_run("robot", args.config, profile=args.profile, algorithm=args.algorithm,
+                                        evaluations=args.evaluations, seed=args.seed)
+    problem_config = dict(load_config_file(args.config).get("problem_config") or {}) if args.config else {}
+    if args.profile:
+        problem_config["profile"] = args.profile
+    suite = Suite("robot", problem_config, [], [f"search:{args.algorithm}:seed{args.seed}"])
+    settings = _settings(args, results)
+    settings.budget_s = args.hours * 3600.0 / args.time_scale
+    if args.stack in NAV2_STACKS:
+        _need_ros(args.stack)
+    settings.bags.mkdir(parents=True, exist_ok=True)
+    prepared = prepare(config, args.stack, _overlay(args) if args.stack in NAV2_STACKS else None, args.time_scale,
+                       settings.bags)
+    print(f"search: {args.algorithm}, seed {args.seed}, {args.hours:g} h of the stack at time scale "
+          f"{args.time_scale:g}; rows to {results}")
+    code = 0
+    try:
+        run_search(problem, Search(problem, search_settings, valid_samples=True), suite, prepared, settings)
+    except StackStopped as exc:
+        print(f"ambiegen stack-search: stopped: {exc}", file=sys.stderr)
+        code = 1
+    except KeyboardInterrupt:
+        print(f"ambiegen stack-search: interrupted; the runs made are in {results}", file=sys.stderr)
+        code = 130
+    if not results.exists():
+        return code or 1
+    ran = {row["key"]: row for row in TrialLog(results).rows()}
+    suite.entries = [Entry(name=row.get("scenario_name") or key, scenario=row["scenario"], key=key)
+                     for key, row in ran.items()]
+    md, _ = report.report(suite, results, [config.label])
+    print("\n".join(md))
+    written = report.write(suite, results, [config.label], args.out or str(results.parent / f"{results.stem}_reports"),
+                           utc_stamp(), "rerun")
+    print(f"written: {written['md']}, {written['json']}")
+    for picture in written.get("pictures", []):
+        print(f"picture: {picture}")
     return code

@@ -118,20 +118,39 @@ def run_trials(suite: Suite, prepared: list[Prepared], settings: TrialSettings,
     return made
 
 
+class Feed:
+    """Runs that are not known in advance (a search's batches): ``more()`` gives the next entries once
+    the queue is empty (none: the runs end), ``took(entry, outcome)`` the verdict each entry earned
+    (its first counted run; a crash's rerun on a fresh stack is not asked for again)."""
+
+    def more(self) -> list[Entry]:
+        return []
+
+    def took(self, entry: Entry, outcome: Any) -> None:
+        pass
+
+
 def _run_configuration(suite: Suite, p: Prepared, todo: list[tuple[int, Entry]], settings: TrialSettings,
-                       log: TrialLog, injector: Injector, clock: dict, say: Callable[[str], None]) -> int:
+                       log: TrialLog, injector: Injector, clock: dict, say: Callable[[str], None],
+                       feed: Feed | None = None) -> int:
     """One configuration's runs on one session, with the reruns that crashes and our errors call for."""
     label = p.config.label
     session = StackSession(settings, suite, p, say, injector)
     say(f"[{label}] stack {settings.stack}, params {p.path or '(defaults)'}; bag {session.bag}")
     made, errors = 0, 0
     queue: list[tuple[Entry, dict]] = [(entry, {}) for _, entry in todo]
+    feed = feed or Feed()
     try:
         if not session.ready():
             raise StackStopped(f"[{label}] the stack's nodes did not come up in {settings.ready_timeout:.0f} s "
                                f"(logs: {session.dir / 'logs'})")
         done = log.done(label)
-        while queue and not (settings.budget_s is not None and time.monotonic() - clock["start"] > settings.budget_s):
+        while not (settings.budget_s is not None and time.monotonic() - clock["start"] > settings.budget_s):
+            if not queue:
+                queue = [(entry, {}) for entry in feed.more()]
+                clock["total"] += len(queue)
+                if not queue:
+                    break
             entry, extra = queue.pop(0)
             made += 1
             before = session.between_runs()
@@ -152,6 +171,8 @@ def _run_configuration(suite: Suite, p: Prepared, todo: list[tuple[int, Entry]],
             if counted(row):
                 done[entry.key] += 1
                 errors = 0
+                if "crash_rerun_of" not in extra:
+                    feed.took(entry, outcome)
             elif not explained:  # an error a restart of ours explains is not the kind that repeats
                 errors += 1
             _say_run(say, clock, label, entry, repeat, settings.repeat, outcome, row, wall)

@@ -211,3 +211,34 @@ def test_ctrl_c_stops_the_command_and_records_no_lost_run(tmp_path, suite_file, 
     rows = TrialLog(results).rows()
     assert 1 <= len(rows) <= 2 and all(r["failure_kind"] not in ("sim_timeout", "error") for r in rows), \
         [(r["scenario_name"], r["verdict"]) for r in rows]
+
+
+def test_a_search_on_the_supervised_stack_goes_on_after_a_crash(tmp_path, ros_domain):
+    """``ambiegen stack-search`` (issue 57): the search asks, the supervised stack runs each scenario.
+    Its driver killed in the 2nd run is that scenario's FAIL(sut_crashed), run once more on a fresh
+    stack; the search is told every batch and asks the next, to the end of its budget."""
+    import yaml
+
+    config = yaml.safe_load(Path(CONFIG).read_text())
+    config.update(population=4, offspring=4)
+    small = tmp_path / "search.yaml"
+    small.write_text(yaml.safe_dump(config))
+    results = tmp_path / "search.jsonl"
+    run = ambiegen("stack-search", "--stack", "nd", "--config", str(small), "--algorithm", "ga", "--seed", "3",
+                   "--hours", "10", "--evaluations", "12", "--results", str(results),
+                   "--domain-id", str(ros_domain), "--inject", "nd_driver:SIGKILL@2")
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    rows = TrialLog(results).rows()
+    generations = {r["scenario_name"].split("-")[0] for r in rows}
+    assert generations == {"g1", "g2", "g3"}, [r["scenario_name"] for r in rows]  # 12 evaluations: 3 batches of 4
+    assert "generation 1 told" in run.stdout and "generation 2 told" in run.stdout
+    crash = next(r for r in rows if r["failure_kind"] == "sut_crashed")
+    assert "nd_driver killed by SIGKILL" in crash["detail"] and crash["scenario_name"] == rows[1]["scenario_name"]
+    again = [r for r in rows if r.get("crash_rerun_of")]
+    assert len(again) == 1 and again[0]["key"] == crash["key"] and again[0]["failure_kind"] != "sut_crashed"
+    for name in {r["scenario_name"] for r in rows}:  # each scenario run has a verdict of the stack
+        assert any(r["scenario_name"] == name and r["failure_kind"] not in ("error", "sim_timeout") for r in rows)
+    assert results.with_name("search_reports").is_dir()
+    again_cmd = ambiegen("stack-search", "--stack", "nd", "--config", str(small), "--hours", "1",
+                         "--results", str(results))
+    assert again_cmd.returncode == 2 and "exists" in again_cmd.stderr  # a search never appends to another's file
