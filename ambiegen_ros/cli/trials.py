@@ -31,8 +31,12 @@ def _common(p: argparse.ArgumentParser, many: bool, search: bool = False) -> Non
         p.add_argument("--hours", type=float, required=True, metavar="H", help="simulated hours of the stack to "
                        "spend: no scenario is sent after H x 3600 / --time-scale wall seconds (the one running "
                        "finishes)")
-        p.add_argument("--evaluations", type=int, default=100_000, metavar="N", help="at most N scenarios asked "
-                       "(default 100000: the hours decide)")
+        p.add_argument("--mode", choices=("in_the_loop", "surrogate"), default="in_the_loop",
+                       help="in_the_loop: the stack runs every scenario the search asks, and its verdicts steer the "
+                            "search (default); surrogate: the search runs on the problem's surrogate first (e.g. the "
+                            "threat score), then the stack runs its suite, best first")
+        p.add_argument("--evaluations", type=int, metavar="N", help="scenarios the search asks at most (default: "
+                       "in_the_loop 100000, the hours decide; surrogate: --config's budget)")
     else:
         p.add_argument("suite", nargs="+", metavar="SUITE", help="suite files (JSON: a search's suite.json, a "
                        "write-up's *_suite.json, one scenario) or a campaign's MCAP (its certified failures)")
@@ -245,12 +249,14 @@ def cmd_search(args) -> int:
     results = Path(args.results)
     if results.exists():
         raise BadInput(f"--results {results} exists: a search starts a file of its own (never appended to)")
+    loop = args.mode == "in_the_loop"
+    evaluations = args.evaluations or (100_000 if loop else None)
     problem, search_settings = make_run("robot", args.config, profile=args.profile, algorithm=args.algorithm,
-                                        evaluations=args.evaluations, seed=args.seed)
+                                        evaluations=evaluations, seed=args.seed)
     problem_config = dict(load_config_file(args.config).get("problem_config") or {}) if args.config else {}
     if args.profile:
         problem_config["profile"] = args.profile
-    suite = Suite("robot", problem_config, [], [f"search:{args.algorithm}:seed{args.seed}"])
+    suite = Suite("robot", problem_config, [], [f"search:{args.algorithm}:{args.mode}:seed{args.seed}"])
     settings = _settings(args, results)
     settings.budget_s = args.hours * 3600.0 / args.time_scale
     if args.stack in NAV2_STACKS:
@@ -258,11 +264,12 @@ def cmd_search(args) -> int:
     settings.bags.mkdir(parents=True, exist_ok=True)
     prepared = prepare(config, args.stack, _overlay(args) if args.stack in NAV2_STACKS else None, args.time_scale,
                        settings.bags)
-    print(f"search: {args.algorithm}, seed {args.seed}, {args.hours:g} h of the stack at time scale "
+    print(f"search: {args.algorithm} ({args.mode}), seed {args.seed}, {args.hours:g} h of the stack at time scale "
           f"{args.time_scale:g}; rows to {results}")
     code = 0
     try:
-        run_search(problem, Search(problem, search_settings, valid_samples=True), suite, prepared, settings)
+        run_search(problem, Search(problem, search_settings, valid_samples=True), suite, prepared, settings,
+                   in_the_loop=loop)
     except StackStopped as exc:
         print(f"ambiegen stack-search: stopped: {exc}", file=sys.stderr)
         code = 1

@@ -24,16 +24,37 @@ from .suite import Entry, Suite, scenario_key
 
 
 class SearchFeed(Feed):
-    """The search's batches as entries (``g<generation>-<index>``), told back once all are run."""
+    """The search's batches as entries (``g<generation>-<index>``), told back once all are run; with
+    ``in_the_loop`` False the search runs on the surrogate alone first and its suite is one batch
+    (``s-<rank>``, best first), as a campaign's surrogate mode executes it."""
 
-    def __init__(self, problem: Any, search: Any, problem_config: dict, say: Callable[[str], None]):
+    def __init__(self, problem: Any, search: Any, problem_config: dict, say: Callable[[str], None],
+                 in_the_loop: bool = True):
         self.problem, self.search, self.problem_config, self.say = problem, search, problem_config, say
+        self.in_the_loop = in_the_loop
         self.generation = 0
         self.batch: list[Entry] = []
         self.outcomes: dict[str, Any] = {}
         self.entries: list[Entry] = []  # every one run, for the report
 
+    def _entry(self, name: str, scenario: dict) -> Entry:
+        return Entry(name=name, scenario=scenario, key=scenario_key(scenario, self.problem_config))
+
+    def _suite(self) -> list[Entry]:
+        """The surrogate search's suite, once: what the problem allows of it, best first."""
+        if self.generation:
+            return []
+        self.generation = 1
+        result = self.search.run()
+        runs = [self._entry(f"s-{rank}", item["scenario"]) for rank, item in enumerate(result.suite) if item["valid"]]
+        self.say(f"surrogate search done: {result.evaluations} evaluations, best F1 {result.best_f1:.3f}; "
+                 f"running {len(runs)} of its {len(result.suite)} suite scenarios")
+        self.entries += runs
+        return runs
+
     def more(self) -> list[Entry]:
+        if not self.in_the_loop:
+            return self._suite()
         if self.batch:
             missing = [e.name for e in self.batch if e.name not in self.outcomes]
             if missing:  # the runner stopped inside the batch: nothing is told of half a batch
@@ -49,9 +70,7 @@ class SearchFeed(Feed):
         valid = self.problem.evaluate_rows(X).valid
         runs = []
         for i, row in enumerate(X):
-            scenario = self.problem.codec.from_row(row).to_dict()
-            entry = Entry(name=f"g{self.generation}-{i}", scenario=scenario,
-                          key=scenario_key(scenario, self.problem_config))
+            entry = self._entry(f"g{self.generation}-{i}", self.problem.codec.from_row(row).to_dict())
             self.batch.append(entry)
             if valid[i]:
                 runs.append(entry)
@@ -65,12 +84,12 @@ class SearchFeed(Feed):
 
 
 def run_search(problem: Any, search: Any, suite: Suite, prepared: Prepared, settings: TrialSettings,
-               say: Callable[[str], None] = print) -> SearchFeed:
+               say: Callable[[str], None] = print, in_the_loop: bool = True) -> SearchFeed:
     """Run the search on one supervised stack until it ends or ``settings.budget_s`` (wall seconds of
     sending) is spent; rows go to ``settings.results``. Returns the feed (its entries: what ran)."""
     log = TrialLog(settings.results)
     log.check_label(prepared.config.label, prepared.digest)
-    feed = SearchFeed(problem, search, suite.problem_config, say)
+    feed = SearchFeed(problem, search, suite.problem_config, say, in_the_loop)
     clock = {"count": 0, "start": time.monotonic(), "total": 0}
     _run_configuration(suite, prepared, [], settings, log, Injector(settings.faults, say), clock, say, feed)
     return feed

@@ -242,3 +242,27 @@ def test_a_search_on_the_supervised_stack_goes_on_after_a_crash(tmp_path, ros_do
     again_cmd = ambiegen("stack-search", "--stack", "nd", "--config", str(small), "--hours", "1",
                          "--results", str(results))
     assert again_cmd.returncode == 2 and "exists" in again_cmd.stderr  # a search never appends to another's file
+
+
+def test_a_surrogate_search_runs_its_suite_on_the_stack_best_first(tmp_path, ros_domain):
+    """``stack-search --mode surrogate``: the search on the surrogate first, then its suite on the
+    supervised stack, best first; the seed gives the suite an in-process search of the same run
+    config gives."""
+    import yaml
+
+    from ambiegen_ros.core.search import Search
+    from ambiegen_ros.run_config import make_run
+
+    config = yaml.safe_load(Path(CONFIG).read_text())
+    config.update(population=10, offspring=10, evaluations=60, suite_size=3, restarts=1)
+    small = tmp_path / "surrogate.yaml"
+    small.write_text(yaml.safe_dump(config))
+    results = tmp_path / "search.jsonl"
+    run = ambiegen("stack-search", "--stack", "nd", "--config", str(small), "--mode", "surrogate", "--seed", "5",
+                   "--hours", "10", "--results", str(results), "--domain-id", str(ros_domain))
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    problem, settings = make_run("robot", small, algorithm="ga", seed=5)
+    suite = [item["scenario"] for item in Search(problem, settings, valid_samples=True).run().suite if item["valid"]]
+    rows = TrialLog(results).rows()
+    assert [r["scenario_name"] for r in rows] == [f"s-{i}" for i in range(len(suite))]
+    assert [r["scenario"] for r in rows] == suite and all(r["verdict"] for r in rows)
