@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import json
 import os
 import shutil
 import sys
@@ -227,6 +228,7 @@ def cmd_trials(args) -> int:
 
 def cmd_search(args) -> int:
     from ..core.config import load_config_file
+    from ..core.runs import run_config
     from ..core.search import Search
     from ..run_config import make_run
     from ..trials import report
@@ -247,8 +249,10 @@ def cmd_search(args) -> int:
                        "/opt/ros/jazzy/share/nav2_bringup/params/nav2_params.yaml)")
     config = parse_config(args.params[0]) if args.params else StackConfig("nd", ())
     results = Path(args.results)
-    if results.exists():
-        raise BadInput(f"--results {results} exists: a search starts a file of its own (never appended to)")
+    record = results.with_name(results.stem + ".search.json")
+    for path in (results, record):
+        if path.exists():
+            raise BadInput(f"{path} exists: a search starts files of its own (never appended to or replaced)")
     loop = args.mode == "in_the_loop"
     evaluations = args.evaluations or (100_000 if loop else None)
     problem, search_settings = make_run("robot", args.config, profile=args.profile, algorithm=args.algorithm,
@@ -264,8 +268,13 @@ def cmd_search(args) -> int:
     settings.bags.mkdir(parents=True, exist_ok=True)
     prepared = prepare(config, args.stack, _overlay(args) if args.stack in NAV2_STACKS else None, args.time_scale,
                        settings.bags)
+    record.parent.mkdir(parents=True, exist_ok=True)
+    record.write_text(json.dumps(run_config(problem, search_settings, {"mode": args.mode, "stack": args.stack,
+                                                                      "params": prepared.record(), "hours": args.hours,
+                                                                      "time_scale": args.time_scale}),
+                                 indent=1, default=str) + "\n")
     print(f"search: {args.algorithm} ({args.mode}), seed {args.seed}, {args.hours:g} h of the stack at time scale "
-          f"{args.time_scale:g}; rows to {results}")
+          f"{args.time_scale:g}; rows to {results}, its settings to {record}")
     code = 0
     try:
         run_search(problem, Search(problem, search_settings, valid_samples=True), suite, prepared, settings,

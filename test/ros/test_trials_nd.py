@@ -266,3 +266,5 @@ def test_a_surrogate_search_runs_its_suite_on_the_stack_best_first(tmp_path, ros
     rows = TrialLog(results).rows()
     assert [r["scenario_name"] for r in rows] == [f"s-{i}" for i in range(len(suite))]
     assert [r["scenario"] for r in rows] == suite and all(r["verdict"] for r in rows)
+    record = json.loads(results.with_name("search.search.json").read_text())  # what a rerun of the search needs
+    assert record["seed"] == 5 and record["mode"] == "surrogate" and record["search"]["population"] == 10
