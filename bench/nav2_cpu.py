@@ -28,18 +28,22 @@ from ambiegen_ros.trials.supervise import cpu_seconds  # noqa: E402  (one readin
 
 OURS = {"sim_nodes.sut_adapter": "sut_adapter", "sim_nodes.robot_world": "robot_world",
         "ambiegen_ros.nodes.recorder": "recorder", "ambiegen_ros rerun": "runner", "ambiegen_ros compare": "runner",
-        "ambiegen rerun": "runner", "ambiegen compare": "runner"}  # python -m, or the installed command
+        "ambiegen rerun": "runner", "ambiegen compare": "runner",
+        "ambiegen_ros.cli rerun": "runner", "ambiegen_ros.cli compare": "runner"}  # python -m, or the installed command
 NAV2_LIB = "/lib/nav2_"
 
 
-def processes() -> dict[int, str]:
-    """pid -> part name, for the session's processes."""
+def processes(domain: int | None = None) -> dict[int, str]:
+    """pid -> part name, for the session's processes (only those with ``ROS_DOMAIN_ID=domain`` if given:
+    one stack of several on the machine)."""
     out = {}
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
             continue
         try:
             args = (entry / "cmdline").read_bytes().split(b"\0")
+            if domain is not None and f"ROS_DOMAIN_ID={domain}".encode() not in (entry / "environ").read_bytes().split(b"\0"):
+                continue
         except OSError:
             continue
         line = " ".join(a.decode(errors="replace") for a in args)
@@ -68,13 +72,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seconds", type=float, default=600.0)
     ap.add_argument("--every", type=float, default=5.0)
     ap.add_argument("--tag", default="")
+    ap.add_argument("--domain-id", type=int, default=None,
+                    help="watch only the stack run with this ROS_DOMAIN_ID (one of several on the machine)")
     args = ap.parse_args(argv)
     first: dict[int, float] = {}
     last: dict[int, float] = {}
     names: dict[int, str] = {}
     t0 = time.monotonic()
     while time.monotonic() - t0 < args.seconds:
-        for pid, name in processes().items():
+        for pid, name in processes(args.domain_id).items():
             used = cpu_seconds(pid)
             if used is None:
                 continue
