@@ -513,7 +513,7 @@ class SutAdapter:
         for process, part, what in conversions.stack_events_of(msg):
             job = self.job
             self.node.logger.warning(f"{process} ({part}) {what}" + (f" during scenario {job.scenario_id}" if job else ""))
-            if part == "stack" and self.nav2 is not None:
+            if self.nav2 is not None:  # a death of ours restarts Nav2 too (a new world is a new clock)
                 self.nav2.forget_active()
             if job is None or job.phase == "queued":
                 continue

@@ -204,6 +204,25 @@ def test_sample_times_read_each_clock():
     assert sample_times(stamps, recv, first, "receive", 50.0) == pytest.approx([0.0, 1.0, 2.0])
 
 
+@pytest.mark.parametrize("part", ["stack", "ours"])
+def test_any_death_makes_the_adapter_ask_nav2_again_before_its_next_goal(part):
+    """A death of ours restarts Nav2 too (a new world is a new clock): the chaos hour's goal sent to a
+    Nav2 still coming up after robot_world's restart was rejected, and filed as Nav2's abort. The
+    handler runs here on a STAND-IN for the adapter (no node: its logger and Nav2 client only)."""
+    from types import SimpleNamespace
+
+    from ambiegen_ros.ros.types import TypeRegistry
+    from sim_nodes.sut_adapter import SutAdapter
+
+    asked_again = []
+    stand_in = SimpleNamespace(job=None, nav2=SimpleNamespace(forget_active=lambda: asked_again.append(True)),
+                               node=SimpleNamespace(logger=SimpleNamespace(warning=lambda text: None)))
+    msg = conversions.stack_event(TypeRegistry().new, 1, "robot_world" if part == "ours" else "planner_server",
+                                  part, "killed by SIGKILL")
+    SutAdapter.on_stack_event(stand_in, msg)
+    assert asked_again == [True]
+
+
 def test_odometry_relative_to_the_start_pose_maps_back():
     rng = np.random.default_rng(1)
     start = (3.0, -2.0, 2.5)
