@@ -161,7 +161,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--domain-id", type=int, default=7)
     ap.add_argument("--tag", default="", help="results/nav2_chaos[_TAG].json")
     ap.add_argument("--never-back", action="store_true",
-                    help="end with a stack that never comes back (its own batch, in BAGS/never_back)")
+                    help="end with a stack that never comes back (its own batch: BAGS/never_back, RESULTS_never_back.jsonl)")
     args = ap.parse_args(argv)
 
     from ambiegen_ros.nav2_params import OVERLAY_FILE, package_file
@@ -220,8 +220,10 @@ def main(argv: list[str] | None = None) -> int:
         "stopped": stopped, "results": args.results, "bags": args.bags,
     }
     if args.never_back:
+        # its own bags and rows: in the hour's results file its runs would count as done already
         settings.bags = settings.bags / "never_back"
         settings.bags.mkdir(parents=True, exist_ok=True)
+        settings.results = settings.results.with_name(settings.results.stem + "_never_back.jsonl")
         last = prepare(parse_config(args.params), "bringup", str(package_file(*OVERLAY_FILE)), 1.0, settings.bags)
         figures["never_back"] = never_back(suite, last, settings)
         figures["published"] += figures["never_back"]["published"]
