@@ -190,6 +190,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--report", action="store_true")
     ap.add_argument("--results", type=Path, default=None, help=f"the JSON-lines file rows go to (default {OUT.name}; "
                                                             "another for a trial run)")
+    ap.add_argument("--logs", type=Path, default=None,
+                    help="a directory for the campaign's bag, pictures and logs (a new one under it per run; "
+                         "default: a new temporary directory, which the machine may clear, taking the bag with it)")
     ap.add_argument("--measure", type=Path, metavar="MCAP",
                     help="append the row of a campaign already recorded (e.g. one this bench stopped waiting for), "
                          "from its bag, with the controller, algorithm, mode, config and seed given here")
@@ -206,7 +209,10 @@ def main(argv: list[str] | None = None) -> int:
     info = je.probe()
     if "skip" in info:
         raise SystemExit(info["skip"])
-    logs = Path(tempfile.mkdtemp(prefix="nav2_search_"))
+    if args.logs:
+        args.logs.mkdir(parents=True, exist_ok=True)
+    logs = Path(tempfile.mkdtemp(prefix="nav2_search_", dir=args.logs))
+    print(f"campaign logs, bag and pictures: {logs}", flush=True)
     return append(run_one(args, je.working_tree_install(logs / "ws"), logs), args.results)
 
 
