@@ -42,7 +42,10 @@ def processes(domain: int | None = None) -> dict[int, str]:
             continue
         try:
             args = (entry / "cmdline").read_bytes().split(b"\0")
-            if domain is not None and f"ROS_DOMAIN_ID={domain}".encode() not in (entry / "environ").read_bytes().split(b"\0"):
+            # the stack's processes have the domain in their environment; the runner may have it as its
+            # --domain-id argument only (it sets it for what it starts)
+            if domain is not None and f"ROS_DOMAIN_ID={domain}".encode() not in (entry / "environ").read_bytes().split(b"\0") \
+                    and f"--domain-id\0{domain}\0".encode() not in b"\0".join(args) + b"\0":
                 continue
         except OSError:
             continue
