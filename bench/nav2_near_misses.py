@@ -14,7 +14,9 @@ within 10 s), counted from the goal, restarted each time it fires. A PASS on whi
 **stall**; each firing fails FollowPath, and Nav2's tree answers with a recovery, so a stall is a
 near miss. For each map also the **arrival turn**: how far the
 robot must still turn at the goal, the angle between its direction of travel over the last 1.5 m
-into the goal and the goal's yaw.
+into the goal and the goal's yaw. And the **closest call with a person** (issue 59): how near the
+driving robot's body came to a walking person (``person_gap``), so a stack that survived a search
+can be shown at its closest; each bag's row lists its passes with the smallest gaps.
 
 A bag may be a campaign's (one run) or a ``bench/nav2_maps.py`` batch's (a run per map, each map's
 row then names its run). One JSON row per bag is appended to ``bench/results/nav2_near_misses.jsonl`` (never rewritten), with
@@ -70,6 +72,53 @@ def arrival_turn(poses: np.ndarray, goal: tuple[float, float], goal_yaw: float) 
     return abs(math.degrees((heading - goal_yaw + math.pi) % (2 * math.pi) - math.pi))
 
 
+CLOSEST = 5  # passes listed per bag by their closest approach to a person
+MOVING = 0.05  # m/s: a body slower than this is not driving at anyone (the world charges contacts from 0.01)
+
+
+def person_gap(run, footprint: np.ndarray | None = None) -> dict | None:
+    """The closest the robot's body came to a walking person while it drove (``run``: one
+    ``robot_bag.RobotRun``): the gap [m] (<= 0: contact), when (s from the first
+    pose) and the robot's speed then [m/s]. A person who walks into a robot standing still is left out:
+    the robot could not have done anything, and the world does not charge it either.
+
+    People are where the world's markers put them (``/ambiegen/world/markers``, sent with every scan),
+    placed between two samples linearly at each ``/odom`` pose (they walk straight lines at a constant
+    pace, so only a turn between two samples is cut); the body is the world's Pioneer outline, measured
+    exactly against each disc. None: no person, no marker to place one, or the robot never moved."""
+    from ambiegen_ros.sims.obstacles import Obstacles
+    from ambiegen_ros.sims.robot_world import PIONEER2DX
+
+    samples = [(t, m["people"]) for t, m in run.markers if len(m["people"])]
+    if not samples or len({len(p) for _, p in samples}) != 1:
+        return None  # none, or the count changed mid-run (a marker of another run): nothing to place
+    ts = np.array([t for t, _ in samples])
+    people = np.stack([p for _, p in samples])  # (S, M, 3)
+    t, xy = run.poses[:, 0], run.poses[:, 1:3]
+    lo, hi = np.maximum(np.arange(len(t)) - 2, 0), np.minimum(np.arange(len(t)) + 2, len(t) - 1)
+    dt = t[hi] - t[lo]
+    speed = np.where(dt > 0, np.hypot(*(xy[hi] - xy[lo]).T) / np.where(dt > 0, dt, 1.0), 0.0)
+    keep = (t >= ts[0]) & (t <= ts[-1]) & (speed >= MOVING)
+    poses, speed = run.poses[keep], speed[keep]
+    if not len(poses):
+        return None
+    fp = PIONEER2DX if footprint is None else np.asarray(footprint, dtype=float)
+    reach = float(np.hypot(fp[:, 0], fp[:, 1]).max())
+    circles = np.stack([np.stack([np.interp(poses[:, 0], ts, people[:, k, c]) for c in range(3)], axis=1)
+                        for k in range(people.shape[1])], axis=1)  # (N, M, 3) at the poses' stamps
+    centre = np.hypot(circles[:, :, 0] - poses[:, 1:2], circles[:, :, 1] - poses[:, 2:3]) - circles[:, :, 2]
+    bound = centre.min(axis=1) - reach  # the gap is at least this: only the nearest poses are measured
+    best, k_best = math.inf, 0
+    for k in np.argsort(bound):
+        if bound[k] >= best:
+            break
+        gap = Obstacles(posts=circles[k]).body_clearance(*poses[k, 1:4], fp, 0.0)[0]  # the discs, frozen there
+        if gap < best:
+            best, k_best = gap, int(k)
+    return {"person_gap_m": round(float(best), 3), "person_gap_t": round(float(poses[k_best, 0]), 2),
+            "robot_speed_mps": round(float(speed[k_best]), 2)}
+
+
 def bag_rows(path: Path) -> list[dict]:
     from ambiegen_ros.core.errors import BadInput
     from ambiegen_ros.ros.conversions import yaw_of
@@ -108,7 +157,7 @@ def map_row(run, goal_yaw: float, several: bool) -> dict:
             "progress_failures_replayed": fired, "stalled": stalled,
             "near_miss": None if recorded is None else near_miss(outcome.failure_kind, recorded),
             "arrival_turn_deg": None if turn is None else round(turn, 1),
-            "goal": list(run.goal),
+            "goal": list(run.goal), **(person_gap(run) or {}),
             "track_near_goal": run.poses[close][::10, 1:3].round(2).tolist() if stalled else None}
 
 
@@ -120,9 +169,14 @@ def turned_away(m: dict) -> bool:
 def summary(maps: list[dict]) -> dict:
     turned = [m for m in maps if turned_away(m)]
     recorded = [m["near_miss"] for m in maps if m["near_miss"] is not None]
+    passes = sorted((m for m in maps if not m["failed"] and m.get("person_gap_m") is not None),
+                    key=lambda m: m["person_gap_m"])
     return {"maps": len(maps), "failures": sum(m["failed"] for m in maps), "stalls": sum(m["stalled"] for m in maps),
             "near_misses": sum(recorded) if recorded else None,
-            "arrival_turn_over_100": len(turned), "stalls_there": sum(m["stalled"] for m in turned)}
+            "arrival_turn_over_100": len(turned), "stalls_there": sum(m["stalled"] for m in turned),
+            # the passes on which the driving robot came nearest a person (person_gap)
+            "closest_person_passes": [{k: m[k] for k in ("scenario", "person_gap_m", "person_gap_t", "robot_speed_mps")}
+                                      for m in passes[:CLOSEST]]}
 
 
 def results() -> list[dict]:
@@ -210,7 +264,8 @@ def main(argv: list[str] | None = None) -> int:
                "when": datetime.now(timezone.utc).isoformat(timespec="seconds"), "versions": versions()}
         append_row(OUT, row)
         print(json.dumps({k: row[k] for k in ("label", "bag", "failures", "stalls", "near_misses",
-                                              "arrival_turn_over_100", "stalls_there")} | {"maps": len(maps)}))
+                                              "arrival_turn_over_100", "stalls_there", "closest_person_passes")}
+                         | {"maps": len(maps)}))
     if args.compare:
         label, _, baseline = args.compare.partition(",")
         print(json.dumps(compare(results(), label, baseline)))

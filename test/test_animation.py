@@ -293,6 +293,39 @@ def test_near_miss_comparison_counts_each_bag_once(monkeypatch):
         compare(rows, "search", "nope")
 
 
+def test_closest_call_with_a_person_is_measured_while_the_robot_drives(monkeypatch):
+    """``person_gap``: people placed from 1 Hz markers at 50 Hz poses give the gap a dense, exact
+    placement gives; a person who walks into the robot once it stands is not its closest call."""
+    from types import SimpleNamespace
+
+    from ambiegen_ros.sims.obstacles import Obstacles
+    from ambiegen_ros.sims.robot_world import PIONEER2DX
+
+    monkeypatch.syspath_prepend(str(REPO / "bench"))
+    from nav2_near_misses import person_gap
+
+    t = np.arange(0.0, 20.0 + 1e-9, 0.02)
+    x = np.minimum(0.5 * t, 8.0)  # drives along y = 0 at 0.5 m/s, stands at x = 8 from t = 16
+    poses = np.column_stack([t, x, np.zeros_like(t), np.zeros_like(t)])
+
+    def people(at):  # a walker crossing towards the route, and one who walks into the standing robot
+        crossing = (5.0, 2.8 - 0.2 * at, 0.3)
+        late = (8.0, 2.2 - 0.5 * max(at - 16.0, 0.0), 0.3)  # 0.2 m from the body's side at t = 20
+        return np.array([crossing, late])
+
+    markers = [(float(s), {"people": people(float(s))}) for s in range(21)]
+    run = SimpleNamespace(poses=poses, markers=markers)
+    got = person_gap(run)
+    driving = t < 16.0
+    dense = [Obstacles(posts=people(a)[:1]).body_clearance(b, 0.0, 0.0, PIONEER2DX, 0.0)[0]
+             for a, b in zip(t[driving], x[driving])]
+    k = int(np.argmin(dense))
+    assert got["person_gap_m"] == pytest.approx(dense[k], abs=2e-3) and 0.0 < got["person_gap_m"] < 0.6
+    assert got["person_gap_t"] == pytest.approx(t[k], abs=0.05) and got["robot_speed_mps"] == pytest.approx(0.5)
+    assert Obstacles(posts=people(20.0)[1:]).body_clearance(8.0, 0.0, 0.0, PIONEER2DX, 0.0)[0] < got["person_gap_m"]
+    assert person_gap(SimpleNamespace(poses=poses, markers=[(0.0, {"people": np.zeros((0, 3))})])) is None
+
+
 def test_nav2_search_report_tests_each_side_against_random_from_three_runs(tmp_path, monkeypatch, capsys):
     """``bench/nav2_search.py --report``: the exact one-sided test from 3 runs a side, marked a hint
     under 10; a side with fewer runs gets no test."""
