@@ -171,12 +171,15 @@ def summary(maps: list[dict]) -> dict:
     recorded = [m["near_miss"] for m in maps if m["near_miss"] is not None]
     passes = sorted((m for m in maps if not m["failed"] and m.get("person_gap_m") is not None),
                     key=lambda m: m["person_gap_m"])
+    touched = [m for m in passes if m["person_gap_m"] <= 0.0]  # a person walked into it: the world charges nothing
     return {"maps": len(maps), "failures": sum(m["failed"] for m in maps), "stalls": sum(m["stalled"] for m in maps),
             "near_misses": sum(recorded) if recorded else None,
             "arrival_turn_over_100": len(turned), "stalls_there": sum(m["stalled"] for m in turned),
-            # the passes on which the driving robot came nearest a person (person_gap)
+            # passes on which a person touched the driving robot, not by its doing (a side or the back)
+            "passes_touched_by_a_person": [m["scenario"] for m in touched],
+            # the passes on which the driving robot came nearest a person without a touch (person_gap)
             "closest_person_passes": [{k: m[k] for k in ("scenario", "person_gap_m", "person_gap_t", "robot_speed_mps")}
-                                      for m in passes[:CLOSEST]]}
+                                      for m in passes[len(touched):len(touched) + CLOSEST]]}
 
 
 def results() -> list[dict]:
@@ -264,7 +267,8 @@ def main(argv: list[str] | None = None) -> int:
                "when": datetime.now(timezone.utc).isoformat(timespec="seconds"), "versions": versions()}
         append_row(OUT, row)
         print(json.dumps({k: row[k] for k in ("label", "bag", "failures", "stalls", "near_misses",
-                                              "arrival_turn_over_100", "stalls_there", "closest_person_passes")}
+                                              "arrival_turn_over_100", "stalls_there", "passes_touched_by_a_person",
+                                              "closest_person_passes")}
                          | {"maps": len(maps)}))
     if args.compare:
         label, _, baseline = args.compare.partition(",")
