@@ -76,6 +76,30 @@ def top_speed(params: dict) -> float | None:
 WORLD_TOPICS = ("/scan", "/odom", "/map", "/cmd_vel")  # robot_world's, named absolutely in Nav2 params
 
 
+def goal_time_budget(params: dict, k: float = 1.0) -> float:
+    """The simulated seconds bt_navigator's NavigateToPose tree allows one goal: a ``Timeout`` at the
+    root of its main tree (``fix:doorway_patient`` wraps Jazzy's tree in one), times ``k`` (BT.CPP
+    times it by the wall clock). 0 when the tree has none, or names no file that can be read."""
+    import xml.etree.ElementTree as ET
+
+    bt = ((params.get("bt_navigator") or {}).get("ros__parameters") or {}).get("default_nav_to_pose_bt_xml")
+    try:
+        root = ET.parse(str(bt)).getroot() if bt else None
+    except (OSError, ET.ParseError):
+        return 0.0
+    if root is None:
+        return 0.0
+    trees = root.findall("BehaviorTree")
+    main = next((t for t in trees if t.get("ID") == root.get("main_tree_to_execute")), trees[0] if trees else None)
+    top = list(main) if main is not None else []
+    if len(top) != 1 or top[0].tag != "Timeout":
+        return 0.0
+    try:
+        return float(top[0].get("msec", 0)) / 1000.0 * k
+    except ValueError:
+        return 0.0
+
+
 def for_namespace(params: dict, namespace: str) -> dict:
     """The params of a Nav2 run in ``namespace`` (one of several stacks on one host): nested under
     it, as ROS parameter files address namespaced nodes, with robot_world's topics that the file

@@ -94,6 +94,40 @@ def from_bag(path: Path, problem_config: dict) -> list[dict]:
     return out
 
 
+def from_regenerated(spec: str, verdict_rows: list[dict], readings: dict) -> list[dict]:
+    """``REGEN.mcap,NAV2_BAG,CONFIG``: the scenarios of a Nav2 campaign whose bag is gone, regenerated
+    from its seed (``ambiegen campaign`` with the same algorithm, mode, config and seed, sim-model
+    surrogate: the same scenarios under the same ids), joined with that Nav2 bag's verdicts as
+    ``nav2_near_misses.py`` recorded them (its row for NAV2_BAG). Each scenario's goal must equal the
+    goal Nav2 was sent, or nothing is returned. ``readings``: {NAV2_BAG: {id: known | ours | setting}},
+    failures read by hand: known = a known failure; ours (our machine) and setting (our stack's
+    setting) are not verdicts on the stack and are left out."""
+    from ambiegen_ros.nodes.replay import recorded_scenarios
+
+    regen, nav2_bag, config = spec.split(",")
+    row = next((r for r in verdict_rows if r["bag"] == nav2_bag), None)
+    if row is None:
+        raise SystemExit(f"--regenerated: no verdicts recorded for {nav2_bag}")
+    cfg = load_config_file(REPO / config).get("problem_config") or {}
+    problem = get_problem("robot", cfg)
+    rec = recorded_scenarios(Path(regen))
+    read = {int(k): v for k, v in (readings.get(nav2_bag) or {}).items()}
+    out = []
+    for m in row["maps"]:
+        sid = int(m["scenario"])
+        sc = rec.scenarios.get(sid)
+        env = None if sc is None else problem.environment(problem.parse({"problem": sc.problem, "elements": sc.elements}))
+        if env is None or not np.allclose((np.asarray(env.goal, float) + 0.5) * env.resolution, m["goal"], atol=0.05):
+            raise SystemExit(f"--regenerated: {regen} scenario {sid} is not the one {nav2_bag} ran (its goal differs)")
+        if read.get(sid) in ("ours", "setting"):
+            continue
+        kind = m["verdict"][5:-1] if m["verdict"].startswith("FAIL(") else "none"
+        out.append({"source": nav2_bag, "problem_config": cfg, "scenario": {"problem": sc.problem, "elements": sc.elements},
+                    "failed": bool(m["failed"]), "kind": kind, "known": read.get(sid) == "known",
+                    "recoveries": int(m.get("nav2_recoveries") or 0), "pace": None})
+    return out
+
+
 def scored(rows: list[dict], speed: float = 0.5) -> list[dict]:
     from ambiegen_ros.sims import known_failures
 
@@ -134,12 +168,25 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--speed", type=float, default=0.5,
                     help="the robot's pace (m/s) at which people meet it (0.5: the threat score's; MPPI's "
                          "measured median on hazards passes: 0.39, printed)")
+    ap.add_argument("--regenerated", nargs="*", default=[], metavar="REGEN.mcap,NAV2_BAG,CONFIG",
+                    help="a campaign whose bag is gone: its scenarios regenerated from its seed, its verdicts "
+                         "from --verdicts (checked scenario by scenario by the goal Nav2 was sent)")
+    ap.add_argument("--verdicts", type=Path, default=REPO / "bench" / "results" / "nav2_near_misses.jsonl",
+                    help="nav2_near_misses.py's rows: each bag's verdicts, for --regenerated")
+    ap.add_argument("--readings", type=Path, default=None,
+                    help="JSON {NAV2_BAG: {scenario id: known | ours | setting}}: failures read by hand "
+                         "(e.g. docs/results/nav2/hardened/readings.json)")
     ap.add_argument("--tag", default="")
     args = ap.parse_args(argv)
     rows = from_runs(args.runs) if args.runs.is_file() else []
     cfg = load_config_file(REPO / args.config).get("problem_config") or {}
     for bag in args.mcap:
         rows += from_bag(bag, dict(cfg))
+    if args.regenerated:
+        verdict_rows = [json.loads(line) for line in args.verdicts.read_text().splitlines() if line.strip()]
+        readings = json.loads(args.readings.read_text()) if args.readings else {}
+        for spec in args.regenerated:
+            rows += from_regenerated(spec, verdict_rows, readings)
     if not rows:
         print("no executed hazards scenario found", file=sys.stderr)
         return 1

@@ -45,6 +45,11 @@ To the generator it is one more sim worker (heartbeats on ``/ambiegen/workers``,
   ``config/nav2/known_failures.yaml``, NavFn's path cap) is recorded as FAIL(kind, known: name),
   ``metrics["known_failure"]``, and not counted among new distinct failures. A failed hazards run
   records how far it ended from the nearest unmapped box or post (``metrics["unmapped_obstacle_m"]``).
+  Two rules keep our side's faults and the stack's own settings apart from its failures: an abort
+  with an error code in ``ours_error_codes`` (the Nav2 launch: 107, the controller's costmap got no
+  current data from our world in time) is an ``error`` record, to be run again; and a give-up at
+  the stack's own time per goal (``goal_time_budget``: the launch reads a Timeout at the root of
+  bt_navigator's tree) counts only when the reference reaches the goal within that time too.
 * ``vehicle``: the road on ``road_topic`` (``nav_msgs/Path``, latched); watches ``odom_topic``
   (pose = centre of the car's bounding box).
 * ``thermostat``: set points on ``setpoint_topic`` (``std_msgs/Float64``), each when its
@@ -120,6 +125,26 @@ NAV2_NOT_READY_S = 1.0  # simulated s judged: Nav2 refusing its goal sooner gets
 def near_miss(recoveries: int) -> str:
     """What a PASS detail adds when Nav2 got there only through its recovery branch."""
     return f" (a near miss: after {recoveries} recover{'y' if recoveries == 1 else 'ies'})" if recoveries else ""
+
+
+def ours_not_the_stack(outcome: Outcome) -> Outcome:
+    """A Nav2 abort whose error code says our side failed it (``ours_error_codes``): an error record,
+    to be run again, with what Nav2 said kept in its detail and metrics."""
+    code = outcome.metrics.get("nav2_error_code")
+    return Outcome(objectives=dict(outcome.objectives), failed=False, failure_kind="error",
+                   detail=f"{outcome.detail}: error {code} is ours (ours_error_codes), not the stack's failure; "
+                          "run it again",
+                   metrics={**outcome.metrics, "sut_failure_kind": outcome.failure_kind},
+                   trajectory=outcome.trajectory, timeline=outcome.timeline, failure_point=outcome.failure_point)
+
+
+def budget_spent(kind: str, elapsed: float, budget: float) -> float | None:
+    """The stack's own time per goal (``goal_time_budget``) when it gave up at it, within 10 % (the
+    world's clock may lag the tree's wall clock on a loaded machine): the time the reference gets
+    too. None otherwise."""
+    if budget > 0 and kind == "nav2_aborted" and elapsed >= 0.9 * budget:
+        return budget
+    return None
 
 
 def nav2_answer(result: dict, elapsed: float) -> str:
@@ -215,6 +240,19 @@ class SutAdapter:
             self.known_failures = known_failures.load(known) if known else []
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
+        self.goal_time_budget = float(p("goal_time_budget", 0.0, "robot, goal_mode action: the stack's own time limit "
+                                                             "per goal [simulated s] (a behaviour tree's Timeout; the "
+                                                             "Nav2 launch reads it from the tree). An abort at that "
+                                                             "limit is a failure only when the reference reaches the "
+                                                             "goal within it too (0 = none)"))
+        ours = p("ours_error_codes", "", "goal_mode action: Nav2 error codes that say our side failed the stack, "
+                                         "comma separated: an abort with one is an error record, run again, not the "
+                                         "stack's failure (the Nav2 launch passes 107: the controller's costmap timed "
+                                         "out waiting for our world's data; '' = none)")
+        try:
+            self.ours_error_codes = {int(c) for c in str(ours).replace(" ", "").split(",") if c}
+        except ValueError:
+            raise ConfigError(f"ours_error_codes: comma separated integers, not {ours!r}") from None
         self.time_limit_speed = float(p("time_limit_speed", 0.0, "robot: top speed [m/s] of the time limit max("
                                                                  "timeout, 2 x route / speed + 60 s) (the stack's, "
                                                                  "e.g. Nav2's controller max speed; 0 = the oracle's "
@@ -723,9 +761,12 @@ class SutAdapter:
         if outcome.failure_kind == "stall" and gave_up is not None and gave_up.event is not None \
                 and outcome.metrics.get("stall_cause") == gave_up.event[1]:
             outcome.detail = f"{outcome.detail} (the system under test gave up, on {self.topics['stall']})"
+        if outcome.failure_kind == "nav2_aborted" and outcome.metrics.get("nav2_error_code") in self.ours_error_codes:
+            outcome = ours_not_the_stack(outcome)
         if self.reference and outcome.failed:  # does the in-process reference pass the same scenario?
-            outcome = reference.certify(outcome, reference.after(self.problem, job.scenario, self.oracle, outcome)
-                                        or job.before)
+            budget = budget_spent(outcome.failure_kind, job.judge.elapsed, self.goal_time_budget)
+            outcome = reference.certify(outcome, reference.after(self.problem, job.scenario, self.oracle, outcome,
+                                                                 budget=budget) or job.before)
         hazards = self.problem_name == "robot" and getattr(self.problem, "hazards", False)
         if hazards and outcome.failed:  # evidence for a known failure: an unmapped obstacle where it failed
             where = outcome.failure_point or (None if outcome.trajectory is None or not len(outcome.trajectory)

@@ -170,6 +170,8 @@ def test_the_hardened_fix_is_the_fixes_that_worked_in_order(tmp_path, monkeypatc
     naming the two, the map's walls in the local costmap and the patient tree."""
     import xml.etree.ElementTree as ET
 
+    from ambiegen_ros.nav2_params import goal_time_budget
+
     fake_installed_tree(tmp_path, monkeypatch)
     base = tmp_path / "nav2.yaml"
     base.write_text("local_costmap:\n  local_costmap:\n    ros__parameters:\n"
@@ -189,6 +191,9 @@ def test_the_hardened_fix_is_the_fixes_that_worked_in_order(tmp_path, monkeypatc
     assert Path(hardened.behavior_tree).read_text() == Path(both.behavior_tree).read_text()
     root = ET.fromstring(Path(hardened.behavior_tree).read_text().split("-->", 1)[1])
     assert root.find("BehaviorTree/Timeout").get("msec") == "180000"
+    assert goal_time_budget(hardened.params) == 180.0  # the adapter's goal_time_budget for this stack
+    assert goal_time_budget(configs.prepare(configs.parse_config(f"{base}+fix:walls_static_local"), "bringup", None,
+                                            1.0, tmp_path / "d").params) == 0.0
     assert root.find(".//RecoveryNode").get("number_of_retries") == "1000"
     bad = tmp_path / "bad.yaml"
     bad.write_text("ambiegen_fixes: walls_static_local\n")

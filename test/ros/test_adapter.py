@@ -223,6 +223,52 @@ def test_any_death_makes_the_adapter_ask_nav2_again_before_its_next_goal(part):
     assert asked_again == [True]
 
 
+def finish_on_a_stand_in(outcome, elapsed: float, error_code: int, budget: float, why: str = "collision with a person"):
+    """``SutAdapter.finish`` run on a STAND-IN for the adapter (no node, no Nav2: its result as the
+    action client holds it), with the real problem, oracle and reference: what it publishes."""
+    from types import SimpleNamespace
+
+    from ambiegen_ros.sims.full_model import sim_config
+    from sim_nodes.sut_adapter import Job, SutAdapter
+    from helpers.hazards_cases import hazards_case
+
+    problem, scenario = hazards_case(why)
+    published = []
+    job = Job("run", 7, scenario, None, judge=SimpleNamespace(elapsed=elapsed), started=0.0)
+    stand_in = SimpleNamespace(
+        job=job, _fast=None, topics={"plan": ""}, order=SimpleNamespace(streams={}), reference=True,
+        problem=problem, oracle=sim_config("robot"), problem_name="robot", known_failures=[],
+        ours_error_codes={107}, goal_time_budget=budget, time_scale=1.0, stamp_clock="sim",
+        nav2=SimpleNamespace(result={"status": "aborted", "error_code": error_code, "error_msg": ""}, handle=None,
+                             recoveries=0, cancel=lambda: None),
+        publish=lambda run_id, sid, out: published.append(out), idle=lambda: None,
+        node=SimpleNamespace(logger=SimpleNamespace(info=lambda text: None)))
+    SutAdapter.finish(stand_in, outcome)
+    return published[0]
+
+
+def test_our_costmap_time_out_is_an_error_to_run_again_and_a_give_up_at_the_trees_timeout_needs_the_reference_in_time():
+    """Issue 59's two hand-read cases as rules. Nav2's error 107 (its costmap got no current data from
+    our world: a loaded machine) is an error record, not the stack's failure; an abort at the stack's
+    own time per goal (the tree's Timeout) counts only if the reference reaches the goal in that time."""
+    from ambiegen_ros.sims import Outcome
+
+    def aborted(after: float) -> Outcome:
+        return Outcome(objectives={"robot_time": after}, failed=True, failure_kind="nav2_aborted",
+                       detail=f"Nav2 aborted its goal after {after:.1f} s (error 0)")
+
+    ours = finish_on_a_stand_in(aborted(30.0), 30.0, 107, 0.0)
+    assert ours.failure_kind == "error" and not ours.failed and "error 107 is ours" in ours.detail
+    assert ours.metrics["sut_failure_kind"] == "nav2_aborted" and ours.metrics["nav2_error_code"] == 107
+    assert finish_on_a_stand_in(aborted(30.0), 30.0, 105, 0.0).failed  # the stack's own error stays its failure
+    # the reference needs 62.3 s for this scenario (test_hazards_world): a 50 s tree cannot be blamed
+    short = finish_on_a_stand_in(aborted(49.0), 49.0, 0, 50.0)
+    assert short.failure_kind == "invalid_test" and "the stack's own 50 s per goal" in short.detail
+    assert finish_on_a_stand_in(aborted(119.0), 119.0, 0, 120.0).failed  # 120 s was time enough
+    # an abort long before the budget is not the budget's: the scenario's own reference decides
+    assert finish_on_a_stand_in(aborted(20.0), 20.0, 0, 50.0).failed
+
+
 def test_odometry_relative_to_the_start_pose_maps_back():
     rng = np.random.default_rng(1)
     start = (3.0, -2.0, 2.5)

@@ -154,6 +154,24 @@ def test_launch_file_declares_every_argument_with_ros_launch():
 
 
 # --- Nav2 as the system under test: nav2_campaign.launch.py's plan --------------------------------------
+def test_a_tree_with_a_timeout_at_its_root_gives_the_adapter_the_stacks_time_per_goal(tmp_path):
+    """The user's tree gives each goal 90 wall seconds (BT.CPP's Timeout, as fix:doorway_patient wraps
+    Jazzy's): at time_scale 4 that is 360 simulated seconds, the adapter's goal_time_budget."""
+    tree = tmp_path / "patient.xml"
+    tree.write_text('<root BTCPP_format="4" main_tree_to_execute="Main"><BehaviorTree ID="Other"><Wait/></BehaviorTree>'
+                    '<BehaviorTree ID="Main"><Timeout msec="90000"><FollowPath/></Timeout></BehaviorTree></root>')
+    params = tmp_path / "mine.yaml"
+    params.write_text(f"bt_navigator:\n  ros__parameters:\n    default_nav_to_pose_bt_xml: {tree}\n")
+    plan = launch_logic.plan_nav2_campaign({"output_dir": str(tmp_path / "a"), "time_scale": "4",
+                                            "params_file": str(params)}, share_dir=str(REPO))
+    assert plan.node("sut_adapter").parameters["goal_time_budget"] == pytest.approx(360.0)
+    tree.write_text('<root main_tree_to_execute="Main"><BehaviorTree ID="Main"><Sequence><Timeout msec="90000">'
+                    '<FollowPath/></Timeout><Wait/></Sequence></BehaviorTree></root>')  # a Timeout inside: not the goal's
+    plan = launch_logic.plan_nav2_campaign({"output_dir": str(tmp_path / "b"), "time_scale": "4",
+                                            "params_file": str(params)}, share_dir=str(REPO))
+    assert plan.node("sut_adapter").parameters["goal_time_budget"] == 0.0
+
+
 def test_nav2_plan_starts_world_nav2_adapter_and_scales_nav2s_rates(tmp_path):
     import yaml
 
@@ -171,6 +189,7 @@ def test_nav2_plan_starts_world_nav2_adapter_and_scales_nav2s_rates(tmp_path):
     # the adapter's guard for a 500 m route at the controller's 0.3 m/s (2 x route / speed + 60 s), + 60 s
     assert generator["result_timeout"] == pytest.approx(2 * (2 * 500 / 0.3 + 60) / 4 + 120 + 60)
     assert adapter["early_verdicts"] is False and adapter["time_limit_speed"] == 0.3  # DWB's max_vel_x
+    assert adapter["ours_error_codes"] == "107" and adapter["goal_time_budget"] == 0.0  # Jazzy's tree: no Timeout
     assert "/scan" in p.node("recorder").parameters["extra_topics"].split(",")
     (scaled,) = {f for n in p.nodes for f in n.params_files}
     assert Path(scaled).parent == tmp_path and p.run_id in Path(scaled).name

@@ -19,6 +19,7 @@ from ambiegen_ros.sims.obstacles import Obstacles, Person
 from ambiegen_ros.sims.reference.robot import plan_clearance_route
 from ambiegen_ros.sims.reference.robot_patient import patient_run, plan_poses
 from ambiegen_ros.sims.robot_world import RobotWorld
+from helpers.hazards_cases import hazards_case
 
 
 def room(n: int = 20) -> np.ndarray:
@@ -164,3 +165,32 @@ def test_the_reference_turns_on_the_spot_to_each_leg_and_the_goals_yaw():
     assert (poses[-1, 2] - (-math.pi / 2)) % (2 * math.pi) == pytest.approx(0.0, abs=1e-9)
     steps = np.hypot(*np.diff(poses[:, :2], axis=0).T)
     assert steps.max() <= 0.05 + 1e-9  # 0.5 m/s x 0.1 s
+
+
+
+@pytest.mark.parametrize("why", ["collision with a person", "pass"])
+def test_a_give_up_at_the_stacks_own_time_per_goal_counts_only_if_the_reference_makes_it_in_that_time(why):
+    """A behaviour tree's Timeout shorter than the scenario's limit (issue 59: the hardened tree gave a
+    route the reference drove in 285.6 s only 180 s): the reference gets the stack's time, people or
+    not; a route longer than that is the stack's setting, an invalid test, not its failure."""
+    from ambiegen_ros.sims import Outcome, reference
+    from ambiegen_ros.sims.full_model import sim_config
+
+    problem, scenario = hazards_case(why)
+    cfg = sim_config("robot")
+    gave_up = Outcome(objectives={"robot_time": 1.0}, failed=True, failure_kind="nav2_aborted",
+                      detail="Nav2 aborted its goal after 60.0 s (error 0)", metrics={"time_limit": 300.0})
+    plain = reference.after(problem, scenario, cfg, gave_up)
+    roomy = reference.after(problem, scenario, cfg, gave_up, budget=290.0)
+    assert roomy.passed and roomy.metrics["time_budget_s"] == 290.0
+    if why == "pass":  # no people: the route's existence was the whole reference; with a budget it is driven
+        assert plain is None
+    else:
+        assert plain.passed and plain.metrics["patient_time_s"] == pytest.approx(roomy.metrics["patient_time_s"])
+    needed = roomy.metrics["patient_time_s"]
+    tight = reference.after(problem, scenario, cfg, gave_up, budget=needed - 5.0)
+    assert not tight.passed and f"the stack's own {needed - 5.0:.0f} s per goal" in tight.reason
+    judged = reference.certify(gave_up, tight)
+    assert judged.failure_kind == "invalid_test" and not judged.failed
+    assert judged.metrics["sut_failure_kind"] == "nav2_aborted" and judged.metrics["reference_time_budget_s"] == needed - 5.0
+    assert reference.certify(gave_up, roomy).failed  # the reference made it in the stack's time: a failure

@@ -51,10 +51,16 @@ def before(problem: Any, scenario: Any, config: Any) -> ReferenceVerdict | None:
     return hook(problem, scenario, config) if hook is not None else None
 
 
-def after(problem: Any, scenario: Any, config: Any, outcome: Outcome, seed: int = 0) -> ReferenceVerdict | None:
-    """The problem's reference run on a scenario the system under test failed (None: none needed)."""
+def after(problem: Any, scenario: Any, config: Any, outcome: Outcome, seed: int = 0,
+          budget: float | None = None) -> ReferenceVerdict | None:
+    """The problem's reference run on a scenario the system under test failed (None: none needed).
+    ``budget`` (s, robot only): the system gave up at its own time limit per goal; the reference
+    gets the same time."""
     hook = getattr(_module(problem.name), "after", None)
-    return hook(problem, scenario, config, outcome, seed) if hook is not None else None
+    if hook is None:
+        return None
+    return hook(problem, scenario, config, outcome, seed, budget=budget) if budget else \
+        hook(problem, scenario, config, outcome, seed)
 
 
 def invalid_test(verdict: ReferenceVerdict, outcome: Outcome | None = None) -> Outcome:

@@ -286,27 +286,40 @@ def true_route(problem: Any, scenario: Any, env: Any, config: Any) -> ClearanceR
     return _TRUE_ROUTES[key]
 
 
-def after(problem: Any, scenario: Any, config: Any, outcome: Any, seed: int = 0) -> ReferenceVerdict | None:
+def after(problem: Any, scenario: Any, config: Any, outcome: Any, seed: int = 0,
+          budget: float | None = None) -> ReferenceVerdict | None:
     """Hazards scenarios with people: does the patient reference (``robot_patient``), knowing every
     person's path, reach the goal along the true route? Without people (and on the paper's maps)
-    the route's existence is the whole reference: None keeps ``before``'s word."""
-    if not getattr(problem, "hazards", False):
-        return None
+    the route's existence is the whole reference: None keeps ``before``'s word.
+
+    ``budget`` (s): the system under test gave up at its own time limit per goal (a behaviour
+    tree's Timeout), shorter than the scenario's. The reference then has that much time too, people
+    or not: a route longer than the stack allows itself is the stack's setting, not its failure."""
     from ..obstacles import Obstacles
     from .robot_patient import patient_run
 
+    hazards = getattr(problem, "hazards", False)
+    if not hazards and budget is None:
+        return None
     env = problem.environment(scenario)
-    obstacles = Obstacles.from_dict(env.unmapped) if env.unmapped else Obstacles()
-    if not obstacles.people:
+    obstacles = Obstacles.from_dict(env.unmapped) if getattr(env, "unmapped", None) else Obstacles()
+    if not obstacles.people and budget is None:
         return None
     true = true_route(problem, scenario, env, config)
     if not true.found:
         return ReferenceVerdict(False, "patient_robot", f"in the world, unmapped obstacles included: {true.reason}")
-    limit = (outcome.metrics or {}).get("time_limit") or config.time_limit(true.length)
-    run = patient_run(true.waypoints, obstacles.people, env.start_yaw or 0.0, env.goal_yaw, config, float(limit))
+    limit = float(budget) if budget else (outcome.metrics or {}).get("time_limit") or config.time_limit(true.length)
+    run = patient_run(true.waypoints, obstacles.people, getattr(env, "start_yaw", None) or 0.0,
+                      getattr(env, "goal_yaw", None), config, float(limit))
     metrics = {"patient_time_s": run.time, "patient_waited_s": run.waited,
                "patient_contacts_not_at_fault": run.contacts_not_at_fault, "true_route_length_m": true.length}
-    return ReferenceVerdict(run.passed, "patient_robot", run.reason, metrics)
+    reason = run.reason
+    if budget:
+        metrics["time_budget_s"] = float(budget)
+        if not run.passed:
+            reason = (f"the patient reference robot does not reach the goal within the stack's own {budget:.0f} s "
+                      f"per goal either (the route is {true.length:.0f} m): a setting of the stack, not a failure")
+    return ReferenceVerdict(run.passed, "patient_robot", reason, metrics)
 
 
 __all__ = ["ClearanceRoute", "SEGMENT_STEP", "after", "before", "true_route", "clearance_field", "fine_size", "footprint_radius",
