@@ -53,3 +53,11 @@ def seed_list(text: str) -> list[int]:
         low, high = (int(v) for v in text.split("-"))
         return list(range(low, high + 1))
     return [int(v) for v in text.split(",")]
+
+
+NAV2_LOOP_MISSED = "Control loop missed its desired rate"  # Nav2 controller_server's own warning
+
+
+def nav2_loop_misses(log: Path) -> int | None:
+    """How often Nav2's controller missed its loop rate, by its warnings in a log (None: no log)."""
+    return log.read_text(errors="replace").count(NAV2_LOOP_MISSED) if log.exists() else None

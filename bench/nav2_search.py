@@ -39,7 +39,7 @@ REPO = Path(__file__).resolve().parents[1]
 for extra in (REPO, REPO / "test", REPO / "test" / "real_ros"):
     sys.path.insert(0, str(extra))
 
-from _common import append_row, read_rows  # noqa: E402
+from _common import append_row, nav2_loop_misses, read_rows  # noqa: E402
 
 OUT = REPO / "bench" / "results" / "nav2_search.jsonl"
 DEFAULT_CONFIG = "config/robot_small.yaml"
@@ -119,6 +119,13 @@ def measure(args, mcap: Path, code, wall: float | None) -> dict:
         # passes that needed Nav2's recovery branch (nav2_recoveries, from the action's feedback)
         "near_misses": sum(near_miss(o.failure_kind, o.metrics.get(NAV2_RECOVERIES)) for o in driven),
         "recoveries": sum(int(o.metrics.get(NAV2_RECOVERIES) or 0) for o in driven),
+        # each failure, to be read: id, kind, known entry, Nav2's error code (readings name them by id)
+        "failure_list": [{"id": sid, "kind": o.failure_kind, "known": o.metrics.get("known_failure"),
+                          "nav2_error_code": o.metrics.get("nav2_error_code")}
+                         for sid, o in sorted(rec.outcomes.items()) if o.failed],
+        "not_the_stacks": dict(Counter(o.failure_kind for o in driven if o.failure_kind in ("error", "sim_timeout"))),
+        # the load the stack ran under: its controller's missed 20 Hz loops (the campaign's launch log)
+        "controller_loop_misses": nav2_loop_misses(mcap.parent / "launch.log"),
         # the campaign drew them when it ended; drawing again draws nothing over them
         "pictures": sorted(str(p) for p in (mcap.parent / "failures").glob("failure_*.png")),
         "unresolved": summarize(mcap)["unresolved"], "mcap": str(mcap),
@@ -158,14 +165,16 @@ def report(path: Path | None = None) -> int:
                   f"known {[r['known_failures'] for r in runs]}, near misses "
                   f"{[r.get('near_misses', '-') for r in runs]} (- : a run from before they were recorded)"
                   + (f"; {short} under one Nav2 hour (next time: --nav2-hours 1.1)" if short else ""))
-        base = [r["distinct_new_failures"] for (a, _), runs in by.items() if a == "random" for r in runs]
-        for (algorithm, mode), runs in sorted(by.items()):
-            d = [r["distinct_new_failures"] for r in runs]
-            if algorithm != "random" and len(d) >= MIN_RUNS and len(base) >= MIN_RUNS:
+        for measure in ("distinct_new_failures", "near_misses"):
+            base = [r.get(measure) for (a, _), runs in by.items() if a == "random" for r in runs]
+            for (algorithm, mode), runs in sorted(by.items()):
+                d = [r.get(measure) for r in runs]
+                if algorithm == "random" or None in d + base or min(len(d), len(base)) < MIN_RUNS:
+                    continue
                 u, p = greater_exact(d, base)
                 hint = "" if min(len(d), len(base)) >= CLAIM_RUNS else f" (a hint: under {CLAIM_RUNS} runs a side)"
-                print(f"{algorithm} ({mode}) > random, {len(d)} against {len(base)} runs: "
-                      f"one-sided Mann-Whitney U = {u:g}, exact p = {p:.3f}{hint}")
+                print(f"{algorithm} ({mode}) > random in {measure.replace('_', ' ')}, {len(d)} against {len(base)} "
+                      f"runs: one-sided Mann-Whitney U = {u:g}, exact p = {p:.3f}{hint}")
     return 0
 
 

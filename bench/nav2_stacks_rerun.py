@@ -26,9 +26,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from _common import read_rows, report  # noqa: E402
-
-MISSED = "Control loop missed its desired rate"
+from _common import nav2_loop_misses, read_rows, report  # noqa: E402
 
 
 def stack_rows(results: Path) -> list[dict]:
@@ -38,7 +36,7 @@ def stack_rows(results: Path) -> list[dict]:
 def missed_loops(rows: list[dict]) -> int:
     """Nav2's controller warnings in the logs of the sessions these rows ran in."""
     logs = {Path(r["bag"]).parent / "logs" / "nav2.log" for r in rows}
-    return sum(log.read_text(errors="replace").count(MISSED) for log in logs if log.exists())
+    return sum(nav2_loop_misses(log) or 0 for log in logs)
 
 
 def fisher(a_fail: int, a_runs: int, b_fail: int, b_runs: int) -> float:

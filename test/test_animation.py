@@ -328,7 +328,8 @@ def test_closest_call_with_a_person_is_measured_while_the_robot_drives(monkeypat
 
 def test_nav2_search_report_tests_each_side_against_random_from_three_runs(tmp_path, monkeypatch, capsys):
     """``bench/nav2_search.py --report``: the exact one-sided test from 3 runs a side, marked a hint
-    under 10; a side with fewer runs gets no test."""
+    under 10, on distinct new failures and on near misses (where every run recorded them); a side
+    with fewer runs gets no test."""
     monkeypatch.syspath_prepend(str(REPO / "bench"))
     import nav2_search
 
@@ -337,6 +338,8 @@ def test_nav2_search_report_tests_each_side_against_random_from_three_runs(tmp_p
                 "nav2_hours": 1.0, "distinct_new_failures": distinct, "known_failures": 0}
 
     rows = [row("dwb", "random", 0) for _ in range(3)] + [row("dwb", "nsga2", d) for d in (2, 1, 2)]
+    for r, misses in zip(rows, (4, 5, 6, 9, 7, 8)):
+        r["near_misses"] = misses
     rows += [row("mppi", "random", 0), row("mppi", "random", 0), row("mppi", "nsga2", 3), row("mppi", "nsga2", 3)]
     # runs on hazards scenarios are compared with random hazards runs only (bench/nav2_search.scenario_space)
     hazards = [{**row("mppi", "random", 0), "config": "config/robot_hazards.yaml"} for _ in range(3)]
@@ -349,9 +352,13 @@ def test_nav2_search_report_tests_each_side_against_random_from_three_runs(tmp_p
     out = capsys.readouterr().out
     dwb, rest = out.split("## mppi, hazards scenarios")
     hazards_part, mppi = rest.split("## mppi, walls scenarios")
-    assert "nsga2 (in_the_loop, c.yaml) > random, 3 against 3 runs: one-sided Mann-Whitney U = 9, exact p = 0.050" in dwb
+    assert ("nsga2 (in_the_loop, c.yaml) > random in distinct new failures, 3 against 3 runs: one-sided Mann-Whitney "
+            "U = 9, exact p = 0.050") in dwb
+    assert "> random in near misses, 3 against 3 runs: one-sided Mann-Whitney U = 9, exact p = 0.050" in dwb
+    assert "random in near misses" not in hazards_part  # not recorded there: no test
     assert "(a hint: under 10 runs a side)" in dwb
     assert "> random" not in mppi  # 2 runs a side: no test
-    assert "config/robot_hazards_threat.yaml) > random, 3 against 3 runs: one-sided Mann-Whitney U = 9" in hazards_part
+    assert ("config/robot_hazards_threat.yaml) > random in distinct new failures, 3 against 3 runs: one-sided "
+            "Mann-Whitney U = 9") in hazards_part
     assert "distinct new failures [1, 2, 3] (per Nav2 hour [1.0, 2.0, 6.0])" in hazards_part
     assert "1 under one Nav2 hour" in hazards_part and "under one Nav2 hour" not in dwb
