@@ -298,19 +298,17 @@ def after(problem: Any, scenario: Any, config: Any, outcome: Any, seed: int = 0,
     from ..obstacles import Obstacles
     from .robot_patient import patient_run
 
-    hazards = getattr(problem, "hazards", False)
-    if not hazards and budget is None:
+    if not getattr(problem, "hazards", False) and budget is None:
         return None
     env = problem.environment(scenario)
-    obstacles = Obstacles.from_dict(env.unmapped) if getattr(env, "unmapped", None) else Obstacles()
+    obstacles = Obstacles.from_dict(env.unmapped) if env.unmapped else Obstacles()
     if not obstacles.people and budget is None:
         return None
     true = true_route(problem, scenario, env, config)
     if not true.found:
         return ReferenceVerdict(False, "patient_robot", f"in the world, unmapped obstacles included: {true.reason}")
     limit = float(budget) if budget else (outcome.metrics or {}).get("time_limit") or config.time_limit(true.length)
-    run = patient_run(true.waypoints, obstacles.people, getattr(env, "start_yaw", None) or 0.0,
-                      getattr(env, "goal_yaw", None), config, float(limit))
+    run = patient_run(true.waypoints, obstacles.people, env.start_yaw or 0.0, env.goal_yaw, config, float(limit))
     metrics = {"patient_time_s": run.time, "patient_waited_s": run.waited,
                "patient_contacts_not_at_fault": run.contacts_not_at_fault, "true_route_length_m": true.length}
     reason = run.reason
