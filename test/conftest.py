@@ -20,8 +20,9 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
+for _path in (ROOT, ROOT / "test"):  # the package, and test/helpers for every test module
+    if str(_path) not in sys.path:
+        sys.path.insert(0, str(_path))
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 # 0 is every ROS user's default; ids above 101 put DDS ports into Linux's ephemeral range
