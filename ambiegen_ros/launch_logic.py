@@ -249,6 +249,8 @@ def nav2_stack(ns: str, mode: str, params: dict, scaled: Path, seed: int, tag: s
         "collision_topic": at("/collision"), "plan_topic": at("/plan"), "action_name": at("/navigate_to_pose"),
         "obstacles_topic": at(topics.WORLD_OBSTACLES),
         "nav2_lifecycle_nodes": lifecycle,
+        # a bringup that gave up is started again: ours and nav2_bringup's stacks, never a user's own
+        "nav2_lifecycle_manager": "" if mode == "external" else "/".join(filter(None, (ns, "lifecycle_manager_navigation"))),
         "nav2_clear_costmaps": ",".join(at(f"/{c}_costmap/clear_entirely_{c}_costmap") for c in ("global", "local")),
         "map_upsample": upsample,
         "tick_period": 0.05,  # a turn every 50 ms (Nav2 controls at 20 Hz): its verdict follows stamps, not turns

@@ -17,21 +17,35 @@ Their messages are the backend's, ``send``'s pose included (``node.new_message``
   feedback reported (``number_of_recoveries``: every recovery action the behaviour tree ran, costmap
   clearings included) in ``recoveries``: a goal that succeeded after one is a near miss;
 * ``cancel()``: the running goal, once our oracle has decided before Nav2 did.
+
+A failed bringup is tried again (``manager``): Nav2's lifecycle manager gives up a bringup at the
+first node that fails to activate and never tries again. One cause is ours: a costmap that
+activates before our world's first ``/clock`` waits for TF until sim time 0 + 60 s, and the clock
+then jumps to the world's stamps, so it fails at once. When lifecycle nodes stay inactive for
+``restart_after`` s, the client asks the manager ``is_active``; the manager answers only when no
+bringup of its own is running (its services share the bringup's callback group), so an answer
+``false`` means it gave up: the client asks it to ``CLEANUP`` (inactive nodes back to unconfigured)
+and ``STARTUP`` again, at most ``restarts`` times.
 """
 from __future__ import annotations
 
+import time
 from typing import Any
 
 STATUS_NAMES = {4: "succeeded", 5: "canceled", 6: "aborted"}  # action_msgs/GoalStatus
 ACTION_TYPE = "nav2_msgs/action/NavigateToPose"
 GET_STATE = "lifecycle_msgs/srv/GetState"
 CLEAR_COSTMAP = "nav2_msgs/srv/ClearEntireCostmap"
+IS_ACTIVE = "std_srvs/srv/Trigger"
+MANAGE_NODES = "nav2_msgs/srv/ManageLifecycleNodes"
+STARTUP, CLEANUP = 0, 6  # ManageLifecycleNodes' commands
 
 
 class Nav2Client:
     def __init__(self, node: Any, action_name: str, lifecycle_nodes: list[str], costmap_services: list[str],
-                 logger: Any):
-        """``node``: the adapter's transport node (either backend)."""
+                 logger: Any, manager: str = "", restarts: int = 0, restart_after: float = 20.0):
+        """``node``: the adapter's transport node (either backend); ``manager``: the lifecycle
+        manager's node name ('' = never restart a failed bringup)."""
         self.node, self.logger = node, logger
         self.action = node.create_action_client(ACTION_TYPE, action_name)
         self.action_name = action_name
@@ -45,6 +59,12 @@ class Nav2Client:
         self.result: dict[str, Any] | None = None
         self.recoveries = 0  # the current goal's, from its feedback
         self.goals = 0
+        self.manager = manager.strip().strip("/")
+        self.restarts_left, self.restart_after = int(restarts) if self.manager else 0, float(restart_after)
+        self.restarts = 0  # bringups asked for so far
+        self._inactive_since: float | None = None
+        self._restarting = False
+        self._manager_clients: dict[str, Any] = {}
 
     # --- readiness ------------------------------------------------------------------------------
     def missing(self) -> list[str]:
@@ -71,7 +91,59 @@ class Nav2Client:
                     self.active.add(name)
 
             future.add_done_callback(done)
+        self._restart_if_given_up(any(name not in self.active for name in self.lifecycle_nodes))
         return out
+
+    # --- a failed bringup, again ----------------------------------------------------------------
+    def _manager_client(self, srv_type: str, service: str) -> Any:
+        client = self._manager_clients.get(service)
+        if client is None:
+            client = self._manager_clients[service] = self.node.create_client(srv_type, f"/{self.manager}/{service}")
+        return client
+
+    def _restart_if_given_up(self, inactive: bool) -> None:
+        """Lifecycle nodes inactive for ``restart_after`` s: ask the manager whether it gave up."""
+        if not inactive or self.restarts_left <= 0:
+            self._inactive_since = None
+            return
+        now = time.monotonic()
+        if self._inactive_since is None:
+            self._inactive_since = now
+        if self._restarting or now - self._inactive_since < self.restart_after:
+            return
+        asked = self._manager_client(IS_ACTIVE, "is_active")
+        if not asked.service_is_ready():
+            return
+        self._restarting = True
+        asked.call_async(asked.new_request()).add_done_callback(self._on_is_active)
+
+    def _on_is_active(self, future: Any) -> None:
+        response = future.result()
+        if response is None or response.success:  # busy or active: the nodes' own states will tell
+            self._restarting, self._inactive_since = False, time.monotonic()
+            return
+        self.restarts_left -= 1
+        self.restarts += 1
+        inactive = [n for n in self.lifecycle_nodes if n not in self.active]
+        self.logger.warning(f"Nav2's bringup gave up ({', '.join(inactive)} not active after "
+                            f"{self.restart_after:g} s; {self.manager} is not active): asking it to clean up and start "
+                            f"again (restart {self.restarts}, {self.restarts_left} left)")
+        self._manage(CLEANUP, lambda ok: self._manage(STARTUP, self._on_startup))
+
+    def _manage(self, command: int, then: Any) -> None:
+        client = self._manager_client(MANAGE_NODES, "manage_nodes")
+        request = client.new_request(command=command)
+
+        def done(future):
+            response = future.result()
+            then(bool(response is not None and response.success))
+
+        client.call_async(request).add_done_callback(done)
+
+    def _on_startup(self, ok: bool) -> None:
+        self.logger.warning(f"{self.manager}: the new bringup {'succeeded' if ok else 'failed too'}")
+        self.forget_active()  # every node is asked again
+        self._restarting, self._inactive_since = False, None
 
     def forget_active(self) -> None:
         """A process of the stack died: its successor starts inactive, so ask every node again before the

@@ -50,6 +50,10 @@ To the generator it is one more sim worker (heartbeats on ``/ambiegen/workers``,
   current data from our world in time) is an ``error`` record, to be run again; and a give-up at
   the stack's own time per goal (``goal_time_budget``: the launch reads a Timeout at the root of
   bt_navigator's tree) counts only when the reference reaches the goal within that time too.
+  A bringup of Nav2 that gave up (its lifecycle manager stops at the first node that fails to
+  activate; a costmap that waited for our world's first clock and TF is one such) is started again
+  when ``nav2_lifecycle_manager`` names the manager (the Nav2 launch does, for the stacks it starts):
+  the scenario waiting for it runs once the nodes are active.
 * ``vehicle``: the road on ``road_topic`` (``nav_msgs/Path``, latched); watches ``odom_topic``
   (pose = centre of the car's bounding box).
 * ``thermostat``: set points on ``setpoint_topic`` (``std_msgs/Float64``), each when its
@@ -259,6 +263,14 @@ class SutAdapter:
                                                                  "cruise_speed, 0.3)"))
         nav2_nodes = p("nav2_lifecycle_nodes", "planner_server,controller_server,bt_navigator",
                        "goal_mode action: Nav2 nodes that must be active before a scenario starts")
+        nav2_manager = p("nav2_lifecycle_manager", "", "goal_mode action: Nav2's lifecycle manager (e.g. "
+                                                      "lifecycle_manager_navigation): when its bringup gave up "
+                                                      "(nodes inactive for nav2_restart_after s and it says it is "
+                                                      "not active), ask it to clean up and start again ('' = never; "
+                                                      "the Nav2 launch sets it for the stacks it starts)")
+        nav2_restarts = int(p("nav2_restarts", 3, "goal_mode action: restarts of a failed bringup, at most"))
+        nav2_restart_after = float(p("nav2_restart_after", 20.0, "goal_mode action: seconds lifecycle nodes stay "
+                                                                 "inactive before the manager is asked"))
         nav2_clear = p("nav2_clear_costmaps", "/global_costmap/clear_entirely_global_costmap,"
                                               "/local_costmap/clear_entirely_local_costmap",
                        "goal_mode action: costmap clearing services called with every new map ('' = none)")
@@ -366,7 +378,8 @@ class SutAdapter:
         if self.goal_mode == "action":  # either backend: the DDS one speaks rmw_cyclonedds_cpp's services
             from sim_nodes.nav2_client import Nav2Client
 
-            self.nav2 = Nav2Client(n, self.action_name, nav2_nodes.split(","), nav2_clear.split(","), n.logger)
+            self.nav2 = Nav2Client(n, self.action_name, nav2_nodes.split(","), nav2_clear.split(","), n.logger,
+                                   manager=nav2_manager, restarts=nav2_restarts, restart_after=nav2_restart_after)
         self.endpoint = WorkerEndpoint(n, self.problem, self.accept,
                                        lambda: len(self.queue) + (self.job is not None), default_id)
         self.worker_id = self.endpoint.worker_id

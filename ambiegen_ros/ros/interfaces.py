@@ -25,6 +25,10 @@ EMPTY = "uint8 structure_needs_at_least_one_member"
 SERVICES: dict[str, str] = {
     "lifecycle_msgs/srv/GetState": "---\nState current_state\n",
     "nav2_msgs/srv/ClearEntireCostmap": "std_msgs/Empty request\n---\nstd_msgs/Empty response\n",
+    "nav2_msgs/srv/ManageLifecycleNodes": (
+        "uint8 STARTUP=0\nuint8 PAUSE=1\nuint8 RESUME=2\nuint8 RESET=3\nuint8 SHUTDOWN=4\nuint8 CONFIGURE=5\n"
+        "uint8 CLEANUP=6\nuint8 command\n---\nbool success\n"),
+    "std_srvs/srv/Trigger": "---\nbool success\nstring message\n",
     "action_msgs/srv/CancelGoal": (
         "GoalInfo goal_info\n---\n"
         "int8 ERROR_NONE=0\nint8 ERROR_REJECTED=1\nint8 ERROR_UNKNOWN_GOAL_ID=2\nint8 ERROR_GOAL_TERMINATED=3\n"

@@ -35,6 +35,8 @@ ACTION = "nav2_msgs/action/NavigateToPose"
 CANCEL = "action_msgs/srv/CancelGoal"
 GET_STATE = "lifecycle_msgs/srv/GetState"
 CLEAR = "nav2_msgs/srv/ClearEntireCostmap"
+TRIGGER = "std_srvs/srv/Trigger"
+MANAGE = "nav2_msgs/srv/ManageLifecycleNodes"
 ACCEPTED, EXECUTING, SUCCEEDED, CANCELED, ABORTED = 1, 2, 4, 5, 6
 _ids = itertools.count(1)
 
@@ -102,6 +104,8 @@ class FakeNav2:
         reg = self.reg = node._registry
         interfaces.ensure(reg, ACTION)
         interfaces.ensure(reg, CANCEL)
+        interfaces.ensure(reg, GET_STATE)
+        interfaces.ensure(reg, CLEAR)
         base = "/navigate_to_pose/_action/"
         self.services = [FakeService(node, ACTION + "_SendGoal", base + "send_goal", self.on_goal),
                          FakeService(node, ACTION + "_GetResult", base + "get_result", self.on_result),
@@ -110,13 +114,14 @@ class FakeNav2:
         self.status = node.create_publisher("action_msgs/msg/GoalStatusArray", base + "status", STATUS_QOS)
         self.goals: dict[bytes, dict] = {}
         self.cleared = 0
-        for name, label in (states or {}).items():
-            self.services.append(FakeService(node, GET_STATE, f"/{name}/get_state", self._state(label)))
+        self.states = dict(states or {})  # node: label, asked at each call (a manager may change them)
+        for name in self.states:
+            self.services.append(FakeService(node, GET_STATE, f"/{name}/get_state", self._state(name)))
         self.services.append(FakeService(node, CLEAR, "/global_costmap/clear_entirely_global_costmap", self.on_clear))
 
-    def _state(self, label: str):
-        return lambda _req, _token: self.reg.new(
-            GET_STATE + "_Response", current_state=self.reg.new("lifecycle_msgs/msg/State", id=3, label=label))
+    def _state(self, name: str):
+        return lambda _req, _token: self.reg.new(GET_STATE + "_Response", current_state=self.reg.new(
+            "lifecycle_msgs/msg/State", id=3, label=self.states[name]))
 
     def on_clear(self, _request, _token):
         self.cleared += 1
@@ -172,6 +177,56 @@ class FakeNav2:
                 goal["result_token"] = None
                 if goal["status"] == CANCELED:
                     self._publish_status()
+
+
+class FakeLifecycleManager:
+    """Jazzy's lifecycle_manager as far as a bringup goes (``lifecycle_manager.cpp``), over the
+    nodes of a ``FakeNav2``: STARTUP configures every node, then activates them in order and stops
+    at the first that fails (``fail_activations`` of them fail, as a costmap that got no TF in
+    time); CLEANUP takes inactive nodes back to unconfigured and fails on any other; ``is_active``
+    says whether the last bringup succeeded. Commands are recorded in ``commands``."""
+
+    def __init__(self, node, nav2: FakeNav2, name: str = "lifecycle_manager_navigation"):
+        self.reg, self.nav2 = node._registry, nav2
+        interfaces.ensure(self.reg, TRIGGER)
+        interfaces.ensure(self.reg, MANAGE)
+        self.services = [FakeService(node, TRIGGER, f"/{name}/is_active", self.on_is_active),
+                         FakeService(node, MANAGE, f"/{name}/manage_nodes", self.on_manage)]
+        self.active, self.fail_activations, self.asked = False, 0, 0
+        self.commands: list[int] = []
+
+    def on_is_active(self, _request, _token):
+        self.asked += 1
+        return self.reg.new(TRIGGER + "_Response", success=self.active, message="")
+
+    def _startup(self) -> bool:
+        states = self.nav2.states
+        if any(label != "unconfigured" for label in states.values()):
+            return False  # configuring a configured node fails: the bringup stops there
+        states.update({name: "inactive" for name in states})
+        for name in states:
+            if self.fail_activations:
+                self.fail_activations -= 1
+                return False
+            states[name] = "active"
+        return True
+
+    def on_manage(self, request, _token):
+        command = int(request.command)
+        self.commands.append(command)
+        states, ok = self.nav2.states, False
+        if command == 6:  # CLEANUP
+            ok = all(label == "inactive" for label in states.values())
+            if ok:
+                states.update({name: "unconfigured" for name in states})
+        elif command == 0:  # STARTUP
+            ok = self._startup()
+        self.active = command == 0 and ok
+        return self.reg.new(MANAGE + "_Response", success=ok)
+
+    def poll(self) -> None:
+        for service in self.services:
+            service.poll()
 
 
 # --- fixtures ------------------------------------------------------------------------------------
@@ -374,3 +429,54 @@ def test_goal_handles_refuse_results_of_rejected_goals_and_feedback_of_other_goa
     cancel = running.result().cancel_goal_async()
     assert run_until(client, [fake], cancel.done)
     assert cancel.result().return_code == 0 and len(cancel.result().goals_canceling) == 1
+
+
+# --- a bringup that gave up ----------------------------------------------------------------------
+def _quiet_log(lines: list):
+    class Log:
+        def info(self, m):
+            lines.append(m)
+
+        warning = info
+    return Log()
+
+
+def test_a_bringup_that_gave_up_is_cleaned_up_and_started_again_until_the_nodes_are_active(pair):
+    """The race seen on a loaded machine: the controller's costmap waited for TF from sim time 0, the
+    world's first /clock jumped past its timeout, the manager gave up with every node inactive."""
+    from sim_nodes.nav2_client import Nav2Client
+
+    client, server = pair
+    lines: list = []
+    fake = FakeNav2(server, {"controller_server": "inactive", "planner_server": "inactive"})
+    manager = FakeLifecycleManager(server, fake)
+    manager.fail_activations = 1  # the first restart fails too (its log says so); the second brings it up
+    nav2 = Nav2Client(client, "navigate_to_pose", ["controller_server", "planner_server"], [], _quiet_log(lines),
+                      manager="lifecycle_manager_navigation", restarts=3, restart_after=0.05)
+    assert run_until(client, [fake, manager], lambda: nav2.missing() == [], timeout=30)
+    assert manager.commands == [6, 0, 6, 0] and nav2.restarts == 2 and nav2.restarts_left == 1
+    assert fake.states == {"controller_server": "active", "planner_server": "active"}
+    assert sum("bringup gave up" in m for m in lines) == 2 and any("failed too" in m for m in lines)
+    assert any("succeeded" in m for m in lines)
+
+
+def test_a_manager_that_is_active_or_busy_is_left_alone_and_restarts_stop_at_their_limit(pair):
+    from sim_nodes.nav2_client import Nav2Client
+
+    client, server = pair
+    fake = FakeNav2(server, {"controller_server": "inactive"})
+    manager = FakeLifecycleManager(server, fake)
+    manager.active = True  # its bringup succeeded; a node inactive now is another matter (a respawn)
+    nav2 = Nav2Client(client, "navigate_to_pose", ["controller_server"], [], _quiet_log([]),
+                      manager="lifecycle_manager_navigation", restarts=2, restart_after=0.05)
+    assert run_until(client, [fake, manager], lambda: (nav2.missing(), manager.asked)[1] >= 3, timeout=30)
+    assert manager.commands == []
+    manager.active, manager.fail_activations = False, 99  # now every bringup fails: two tries, then none
+    assert run_until(client, [fake, manager], lambda: (nav2.missing(), nav2.restarts_left)[1] == 0
+                     and not nav2._restarting, timeout=30)
+    asked = manager.asked
+    assert not run_until(client, [fake, manager], lambda: (nav2.missing(), manager.asked)[1] > asked, timeout=1.0)
+    assert manager.commands == [6, 0, 6, 0]
+    unmanaged = Nav2Client(client, "navigate_to_pose", ["controller_server"], [], _quiet_log([]),
+                           restarts=2, restart_after=0.0)  # no manager named: never asks
+    assert unmanaged.restarts_left == 0

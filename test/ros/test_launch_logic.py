@@ -234,6 +234,7 @@ def test_nav2_external_starts_only_our_side_and_bringup_includes_navigation_laun
     adapter = external.node("sut_adapter").parameters
     assert adapter["start_timeout"] == launch_logic.EXTERNAL_START_TIMEOUT and adapter["time_limit_speed"] == 0.5
     assert adapter["early_verdicts"] is False
+    assert adapter["nav2_lifecycle_manager"] == ""  # a user's own bringup is theirs to restart
     merged = yaml.safe_load(external.nav2_params.read_text())
     follow = merged["controller_server"]["ros__parameters"]["FollowPath"]
     assert follow["ax_max"] == 0.5 and merged["controller_server"]["ros__parameters"]["controller_frequency"] == 40.0
@@ -241,6 +242,7 @@ def test_nav2_external_starts_only_our_side_and_bringup_includes_navigation_laun
     bringup = launch_logic.plan_nav2_campaign({**common, "nav2": "bringup", "early_verdicts": "true"},
                                               share_dir=str(REPO))
     assert [n.name for n in bringup.nodes] == ["recorder", "robot_world", "sut_adapter", "generator"]
+    assert bringup.node("sut_adapter").parameters["nav2_lifecycle_manager"] == "lifecycle_manager_navigation"
     (include,) = bringup.includes
     assert (include.package, include.launch_file) == ("nav2_bringup", "launch/navigation_launch.py")
     assert include.arguments["params_file"] == str(bringup.nav2_params) and include.arguments["use_sim_time"] == "true"
@@ -277,6 +279,7 @@ def test_nav2_stacks_each_get_a_namespace_a_clock_and_params_of_their_own(tmp_pa
         adapter = p.node(f"sut_adapter_{ns}").parameters
         assert adapter["action_name"] == f"/{ns}/navigate_to_pose" and adapter["map_topic"] == f"/{ns}/map"
         assert adapter["nav2_lifecycle_nodes"].split(",")[0] == f"{ns}/planner_server"
+        assert adapter["nav2_lifecycle_manager"] == f"{ns}/lifecycle_manager_navigation"
         assert adapter["nav2_clear_costmaps"].startswith(f"/{ns}/global_costmap/")
     workers = [n.parameters["worker_id"] for n in p.nodes if n.executable == "sut_adapter"]
     assert len(set(workers)) == 2
