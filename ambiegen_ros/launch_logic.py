@@ -213,10 +213,12 @@ def nav2_overlay(value: str, params_file: str, share_dir: str) -> str | None:
     return file_argument(value, os.path.join(share_dir, *OVERLAY_FILE) if params_file else None)
 
 
-# Nav2 error codes that our side causes: 107, FollowPath's CONTROLLER_TIMED_OUT, is thrown only when the
-# controller's costmap got no current data within costmap_update_timeout, i.e. our world's scan and TF
-# came late (seen once, on a machine running two stacks and an analysis: docs/results/nav2/hardened.md)
-NAV2_OURS_ERROR_CODES = "107"
+# Nav2 error codes that our side causes, since our world publishes the scan, TF and clock: 107,
+# FollowPath's CONTROLLER_TIMED_OUT, is thrown only when the controller's costmap got no current data
+# within costmap_update_timeout; 102 and 202, FollowPath's and ComputePathToPose's TF_ERROR, when a
+# transform of ours was too old ("Transform data too old when converting from map to odom"). All seen
+# on a machine running two stacks (docs/results/nav2/hardened.md)
+NAV2_OURS_ERROR_CODES = "102,107,202"
 
 
 def nav2_stack(ns: str, mode: str, params: dict, scaled: Path, seed: int, tag: str, k: float, upsample: int,

@@ -47,7 +47,8 @@ To the generator it is one more sim worker (heartbeats on ``/ambiegen/workers``,
   records how far it ended from the nearest unmapped box or post (``metrics["unmapped_obstacle_m"]``).
   Two rules keep our side's faults and the stack's own settings apart from its failures: an abort
   with an error code in ``ours_error_codes`` (the Nav2 launch: 107, the controller's costmap got no
-  current data from our world in time) is an ``error`` record, to be run again; and a give-up at
+  current data from our world in time, and 102 and 202, a transform of our world's too old) is an
+  ``error`` record, to be run again; and a give-up at
   the stack's own time per goal (``goal_time_budget``: the launch reads a Timeout at the root of
   bt_navigator's tree) counts only when the reference reaches the goal within that time too.
   A bringup of Nav2 that gave up (its lifecycle manager stops at the first node that fails to
@@ -251,8 +252,8 @@ class SutAdapter:
                                                              "goal within it too (0 = none)"))
         ours = p("ours_error_codes", "", "goal_mode action: Nav2 error codes that say our side failed the stack, "
                                          "comma separated: an abort with one is an error record, run again, not the "
-                                         "stack's failure (the Nav2 launch passes 107: the controller's costmap timed "
-                                         "out waiting for our world's data; '' = none)")
+                                         "stack's failure (the Nav2 launch passes 102,107,202: a transform of our "
+                                         "world's too old, its data late to the controller's costmap; '' = none)")
         try:
             self.ours_error_codes = {int(c) for c in str(ours).replace(" ", "").split(",") if c}
         except ValueError:

@@ -189,7 +189,7 @@ def test_nav2_plan_starts_world_nav2_adapter_and_scales_nav2s_rates(tmp_path):
     # the adapter's guard for a 500 m route at the controller's 0.3 m/s (2 x route / speed + 60 s), + 60 s
     assert generator["result_timeout"] == pytest.approx(2 * (2 * 500 / 0.3 + 60) / 4 + 120 + 60)
     assert adapter["early_verdicts"] is False and adapter["time_limit_speed"] == 0.3  # DWB's max_vel_x
-    assert adapter["ours_error_codes"] == "107" and adapter["goal_time_budget"] == 0.0  # Jazzy's tree: no Timeout
+    assert adapter["ours_error_codes"] == "102,107,202" and adapter["goal_time_budget"] == 0.0  # Jazzy's tree: no Timeout
     assert "/scan" in p.node("recorder").parameters["extra_topics"].split(",")
     (scaled,) = {f for n in p.nodes for f in n.params_files}
     assert Path(scaled).parent == tmp_path and p.run_id in Path(scaled).name
