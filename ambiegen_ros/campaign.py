@@ -105,12 +105,21 @@ def ros_params(**params: Any) -> list[str]:
 
 def ros_value(value: Any) -> str:
     """A parameter value as ``-p name:=VALUE`` takes it (YAML): booleans in lower case, lists as
-    flow sequences, the empty string quoted (bare, YAML would read it as null)."""
+    flow sequences, a string quoted whenever YAML would read it bare as something else (the empty
+    string as null, "107" as an integer, "true" as a boolean: a node declaring a string refuses them)."""
+    import yaml
+
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(json.dumps(v) for v in value) + "]"
-    return "''" if value == "" else str(value)
+    if isinstance(value, str):
+        try:
+            bare_ok = value != "" and yaml.safe_load(value) == value
+        except yaml.YAMLError:
+            bare_ok = False
+        return value if bare_ok else "'" + value.replace("'", "''") + "'"
+    return str(value)
 
 
 def node_argv(node: NodeSpec, python: str | None = None) -> list[str]:

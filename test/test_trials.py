@@ -402,3 +402,29 @@ def test_a_node_started_without_its_name_is_found_by_its_executable(tmp_path):
             proc.kill()
             proc.wait()
             proc.stdout.close()
+
+
+def test_a_command_line_gives_every_node_its_parameters_with_their_planned_types(tmp_path):
+    """``ros2 run`` and ``python -m`` nodes get their parameters as ``-p name:=VALUE``, which rcl
+    reads as YAML: a string that reads as a number ("107", the adapter's ours_error_codes) must come
+    quoted, or a node declaring a string refuses it and the rerun's stack never comes up."""
+    import yaml
+
+    from ambiegen_ros import launch_logic
+    from ambiegen_ros.campaign import node_argv, ros_value
+
+    assert [ros_value(v) for v in ("107", "true", "", "it's", "a,b", "plain", 3, 2.5, True)] == \
+        ["'107'", "'true'", "''", "it's", "a,b", "plain", "3", "2.5", "true"]
+    plan = launch_logic.plan_nav2_campaign({"output_dir": str(tmp_path), "seed": "3", "nav2": "ours"},
+                                           share_dir=str(launch_logic.Path(__file__).resolve().parents[1]))
+    checked = 0
+    for node in plan.nodes:
+        argv = node_argv(node, python="python3")
+        given = dict(argv[i + 1].split(":=", 1) for i, a in enumerate(argv) if a == "-p")
+        for name, value in node.parameters.items():
+            if value is None:
+                continue
+            read = yaml.safe_load(given[name])
+            assert read == value and type(read) is type(value), (node.name, name, given[name])
+            checked += 1
+    assert checked > 50
