@@ -38,6 +38,7 @@ GET_STATE = "lifecycle_msgs/srv/GetState"
 CLEAR_COSTMAP = "nav2_msgs/srv/ClearEntireCostmap"
 IS_ACTIVE = "std_srvs/srv/Trigger"
 MANAGE_NODES = "nav2_msgs/srv/ManageLifecycleNodes"
+TRANSITION_EVENT = "lifecycle_msgs/msg/TransitionEvent"
 STARTUP, CLEANUP = 0, 6  # ManageLifecycleNodes' commands
 
 
@@ -144,6 +145,20 @@ class Nav2Client:
         self.logger.warning(f"{self.manager}: the new bringup {'succeeded' if ok else 'failed too'}")
         self.forget_active()  # every node is asked again
         self._restarting, self._inactive_since = False, None
+
+    def watch_transitions(self, qos: Any, on_leave: Any) -> None:
+        """Each lifecycle node's ``transition_event``: a node leaving ``active`` (its manager took the
+        stack down after a lost bond, or someone deactivated it) is asked again before the next goal,
+        and ``on_leave(name, "active -> <state>")`` is told."""
+        for name in self.lifecycle_nodes:
+            self.node.create_subscription(TRANSITION_EVENT, f"/{name}/transition_event",
+                                          lambda msg, name=name: self._on_transition(name, msg, on_leave), qos)
+
+    def _on_transition(self, name: str, msg: Any, on_leave: Any) -> None:
+        start, goal = str(msg.start_state.label), str(msg.goal_state.label)
+        if start == "active":
+            self.active.discard(name)
+            on_leave(name, f"{start} -> {goal}")
 
     def forget_active(self) -> None:
         """A process of the stack died: its successor starts inactive, so ask every node again before the

@@ -55,6 +55,10 @@ To the generator it is one more sim worker (heartbeats on ``/ambiegen/workers``,
   activate; a costmap that waited for our world's first clock and TF is one such) is started again
   when ``nav2_lifecycle_manager`` names the manager (the Nav2 launch does, for the stacks it starts):
   the scenario waiting for it runs once the nodes are active.
+  A lifecycle node of Nav2 leaving the active state during a run (its manager takes the whole stack
+  down when a bond lapses, as a node starved of CPU lets it; seen on a loaded machine) ends the run as
+  an ``error`` record, to be run again, unless a crash report explains it within ``crash_grace``; the
+  next scenario waits until the nodes are active again.
 * ``vehicle``: the road on ``road_topic`` (``nav_msgs/Path``, latched); watches ``odom_topic``
   (pose = centre of the car's bounding box).
 * ``thermostat``: set points on ``setpoint_topic`` (``std_msgs/Float64``), each when its
@@ -203,6 +207,7 @@ class Job:
     contacts_not_at_fault: int = 0  # people who walked into the robot (the world's WARNs): recorded, not failures
     before: Any = None  # the reference's static check (passed), the word on a failure without a reference run
     grace_until: float | None = None  # monotonic: Nav2 failed; a crash reported by then explains it
+    taken_down: str = ""  # a Nav2 lifecycle node left the active state during the run: what happened
 
     @property
     def nav2_resend_due(self) -> bool:
@@ -381,6 +386,7 @@ class SutAdapter:
 
             self.nav2 = Nav2Client(n, self.action_name, nav2_nodes.split(","), nav2_clear.split(","), n.logger,
                                    manager=nav2_manager, restarts=nav2_restarts, restart_after=nav2_restart_after)
+            self.nav2.watch_transitions(DEFAULT, self.on_nav2_left_active)
         self.endpoint = WorkerEndpoint(n, self.problem, self.accept,
                                        lambda: len(self.queue) + (self.job is not None), default_id)
         self.worker_id = self.endpoint.worker_id
@@ -579,6 +585,16 @@ class SutAdapter:
                 whose = "ours, not the stack's failure" if part == "ours" else "before the run began"
                 self.finish(Outcome.rejected(f"{process} {what} ({whose}): run it again", kind="error"))
 
+    def on_nav2_left_active(self, name: str, what: str) -> None:
+        """A lifecycle node of Nav2 left the active state: its manager took the stack down (a bond not
+        renewed within bond_timeout, as a node starved of CPU lets it lapse) or someone did. A run it
+        interrupts ends as an error record, once a crash report had its grace to explain it instead."""
+        job = self.job
+        self.node.logger.warning(f"Nav2's {name} left the active state ({what})"
+                                 + (f" during scenario {job.scenario_id}" if job is not None else ""))
+        if job is not None and job.phase in ("settle", "waiting", "running") and not job.taken_down:
+            job.taken_down = f"Nav2's {name} left the active state during the run ({what})"
+
     def _crash_grace(self, job: Job, now: float) -> bool:
         """Hold Nav2's failure a moment when someone reports the run's processes: a server killed
         mid-run makes Nav2 abort before the report of the kill arrives."""
@@ -608,6 +624,11 @@ class SutAdapter:
             elif now - job.started > self.start_timeout:
                 self.finish(Outcome.rejected(f"no {what} within {self.start_timeout:g} s: {'; '.join(missing)}",
                                              kind="error"))
+            return
+        if job.taken_down:  # held while a crash report may still explain it, then an error record
+            if not self._crash_grace(job, now):
+                self.finish(Outcome.rejected(f"{job.taken_down}: the stack was taken down, not failed by the "
+                                             "scenario; run it again", kind="error"))
             return
         if job.phase == "settle":
             # the goal goes out once the system shows the robot at the start (a quiet one: after

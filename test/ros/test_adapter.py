@@ -463,3 +463,31 @@ def test_a_foreign_robot_stack_with_a_bumper(graph, problems):
     # start pose (1.5, 1.5, heading 0) + 0.1 m along x, in the map frame; the bump came at least
     # 0.5 s after the goal (how much later depends on the machine's load: not checked)
     assert np.allclose(res.trajectory, [[1.6, 1.5]]) and 0.3 <= float(res.metrics["time"]) < math.inf
+
+
+def test_a_run_during_which_nav2_was_taken_down_is_an_error_record_once_no_crash_explains_it():
+    """A lifecycle node leaving the active state mid-run (Jazzy's manager resets the stack when a bond
+    lapses: seen on a starved machine) ends the run as an error to run again, after the crash grace."""
+    from types import SimpleNamespace
+
+    from sim_nodes.sut_adapter import Job, SutAdapter
+
+    finished, warnings = [], []
+    job = Job("run", 3, None, None, started=0.0)
+    job.phase = "running"
+    stand_in = SimpleNamespace(job=job, problem_name="robot", finish=finished.append,
+                               node=SimpleNamespace(logger=SimpleNamespace(warning=warnings.append)))
+    grace = [True]
+    stand_in._crash_grace = lambda j, now: grace[0]
+    SutAdapter.on_nav2_left_active(stand_in, "bt_navigator", "active -> deactivating")
+    assert job.taken_down and "during scenario 3" in warnings[0]
+    SutAdapter.tick(stand_in)
+    assert not finished  # a crash report may still come and make it the stack's crash
+    grace[0] = False
+    SutAdapter.tick(stand_in)
+    (outcome,) = finished
+    assert outcome.failure_kind == "error" and not outcome.failed and "bt_navigator left the active state" in \
+        outcome.detail
+    idle = SimpleNamespace(job=None, node=stand_in.node)
+    SutAdapter.on_nav2_left_active(idle, "bt_navigator", "active -> deactivating")  # between runs: logged only
+    assert len(warnings) == 2

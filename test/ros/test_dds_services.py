@@ -480,3 +480,35 @@ def test_a_manager_that_is_active_or_busy_is_left_alone_and_restarts_stop_at_the
     unmanaged = Nav2Client(client, "navigate_to_pose", ["controller_server"], [], _quiet_log([]),
                            restarts=2, restart_after=0.0)  # no manager named: never asks
     assert unmanaged.restarts_left == 0
+
+
+def test_a_lifecycle_node_leaving_active_is_forgotten_and_reported(pair):
+    """Jazzy's lifecycle manager takes the whole stack down when a bond lapses (a node starved of CPU
+    for bond_timeout); each node publishes its transitions on ``<node>/transition_event``."""
+    from ambiegen_ros.ros.qos import DEFAULT
+    from sim_nodes.nav2_client import TRANSITION_EVENT, Nav2Client
+
+    client, server = pair
+    fake = FakeNav2(server, {"controller_server": "active"})
+    nav2 = Nav2Client(client, "navigate_to_pose", ["controller_server"], [], _quiet_log([]))
+    left: list = []
+    nav2.watch_transitions(DEFAULT, lambda name, what: left.append((name, what)))
+    assert run_until(client, [fake], lambda: (nav2.missing(), nav2.active)[1] == {"controller_server"})
+    events = server.create_publisher(TRANSITION_EVENT, "/controller_server/transition_event", DEFAULT)
+    make = server.new_message
+
+    def event(start: str, goal: str):
+        return make(TRANSITION_EVENT, start_state=make("lifecycle_msgs/msg/State", label=start),
+                    goal_state=make("lifecycle_msgs/msg/State", label=goal))
+
+    def publish_until(predicate) -> bool:
+        deadline = time.monotonic() + 10
+        while not predicate() and time.monotonic() < deadline:
+            events.publish(event("inactive", "activating"))  # not a departure: ignored
+            events.publish(event("active", "deactivating"))
+            run_until(client, [fake], predicate, timeout=0.2)
+        return predicate()
+
+    assert publish_until(lambda: bool(left))
+    assert left[0] == ("controller_server", "active -> deactivating") and "controller_server" not in nav2.active
+    assert all(what.startswith("active") for _, what in left)
