@@ -115,7 +115,7 @@ def ros_value(value: Any) -> str:
         return "[" + ", ".join(json.dumps(v) for v in value) + "]"
     if isinstance(value, str):
         try:
-            bare_ok = value != "" and yaml.safe_load(value) == value
+            bare_ok = yaml.safe_load(value) == value  # "" reads as None
         except yaml.YAMLError:
             bare_ok = False
         return value if bare_ok else "'" + value.replace("'", "''") + "'"

@@ -54,18 +54,16 @@ class Nav2Client:
         self.costmap_services = [s.strip() for s in costmap_services if s.strip()]
         self.active: set[str] = set()
         self._asking: set[str] = set()
-        self._state_clients: dict[str, Any] = {}
-        self._clear_clients: dict[str, Any] = {}
+        self._clients: dict[str, Any] = {}  # service name: its client, made once
         self.handle: Any = None
         self.result: dict[str, Any] | None = None
         self.recoveries = 0  # the current goal's, from its feedback
         self.goals = 0
         self.manager = manager.strip().strip("/")
-        self.restarts_left, self.restart_after = int(restarts) if self.manager else 0, float(restart_after)
+        self.allowed_restarts, self.restart_after = int(restarts) if self.manager else 0, float(restart_after)
         self.restarts = 0  # bringups asked for so far
         self._inactive_since: float | None = None
         self._restarting = False
-        self._manager_clients: dict[str, Any] = {}
 
     # --- readiness ------------------------------------------------------------------------------
     def missing(self) -> list[str]:
@@ -77,9 +75,7 @@ class Nav2Client:
             if name in self.active:
                 continue
             out.append(f"Nav2 node {name} is not active")
-            client = self._state_clients.get(name)
-            if client is None:
-                client = self._state_clients[name] = self.node.create_client(GET_STATE, f"/{name}/get_state")
+            client = self._client(GET_STATE, f"/{name}/get_state")
             if name in self._asking or not client.service_is_ready():
                 continue
             self._asking.add(name)
@@ -95,12 +91,16 @@ class Nav2Client:
         self._restart_if_given_up(any(name not in self.active for name in self.lifecycle_nodes))
         return out
 
-    # --- a failed bringup, again ----------------------------------------------------------------
-    def _manager_client(self, srv_type: str, service: str) -> Any:
-        client = self._manager_clients.get(service)
+    def _client(self, srv_type: str, service: str) -> Any:
+        client = self._clients.get(service)
         if client is None:
-            client = self._manager_clients[service] = self.node.create_client(srv_type, f"/{self.manager}/{service}")
+            client = self._clients[service] = self.node.create_client(srv_type, service)
         return client
+
+    # --- a failed bringup, again ----------------------------------------------------------------
+    @property
+    def restarts_left(self) -> int:
+        return max(0, self.allowed_restarts - self.restarts)
 
     def _restart_if_given_up(self, inactive: bool) -> None:
         """Lifecycle nodes inactive for ``restart_after`` s: ask the manager whether it gave up."""
@@ -112,7 +112,7 @@ class Nav2Client:
             self._inactive_since = now
         if self._restarting or now - self._inactive_since < self.restart_after:
             return
-        asked = self._manager_client(IS_ACTIVE, "is_active")
+        asked = self._client(IS_ACTIVE, f"/{self.manager}/is_active")
         if not asked.service_is_ready():
             return
         self._restarting = True
@@ -123,7 +123,6 @@ class Nav2Client:
         if response is None or response.success:  # busy or active: the nodes' own states will tell
             self._restarting, self._inactive_since = False, time.monotonic()
             return
-        self.restarts_left -= 1
         self.restarts += 1
         inactive = [n for n in self.lifecycle_nodes if n not in self.active]
         self.logger.warning(f"Nav2's bringup gave up ({', '.join(inactive)} not active after "
@@ -132,7 +131,7 @@ class Nav2Client:
         self._manage(CLEANUP, lambda ok: self._manage(STARTUP, self._on_startup))
 
     def _manage(self, command: int, then: Any) -> None:
-        client = self._manager_client(MANAGE_NODES, "manage_nodes")
+        client = self._client(MANAGE_NODES, f"/{self.manager}/manage_nodes")
         request = client.new_request(command=command)
 
         def done(future):
@@ -169,9 +168,7 @@ class Nav2Client:
 
     def clear_costmaps(self) -> None:
         for service in self.costmap_services:
-            client = self._clear_clients.get(service)
-            if client is None:
-                client = self._clear_clients[service] = self.node.create_client(CLEAR_COSTMAP, service)
+            client = self._client(CLEAR_COSTMAP, service)
             if client.service_is_ready():
                 client.call_async(client.new_request())
             else:
