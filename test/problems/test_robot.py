@@ -253,7 +253,7 @@ def test_batch_engines_give_identical_floats(problem, diagonal):
 def test_a_few_maps_planned_uncompiled_give_the_compiled_floats(problem, diagonal, monkeypatch):
     """``auto`` plans up to SMALL_BATCH maps with the kernel's code as plain Python when numba has
     not compiled it yet (start-up of `ambiegen evaluate`); F1 must not depend on that."""
-    import ambiegen_ros.problems.robot as module
+    import ambiegen_ros.problems.robot.planners as module  # the module whose globals batch_path_lengths reads
 
     G, lengths = problem.sample(module.SMALL_BATCH, np.random.default_rng(5))
     grids = build_grids(G, lengths, problem.config)
