@@ -73,8 +73,9 @@ def _common(p: argparse.ArgumentParser, many: bool, search: bool = False) -> Non
     p.add_argument("--early-verdicts", action="store_true", help="Nav2 stacks: the paper's stall and loitering "
                    "monitors decide instead of Nav2's own result")
     p.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID of the stack and this command (default: inherited)")
-    p.add_argument("--start-timeout", type=float, default=120.0, help="seconds the adapter waits for the stack "
-                   "(default 120; external: 600)")
+    p.add_argument("--start-timeout", type=float, default=None, metavar="SECONDS", help="seconds the adapter waits "
+                   "for the stack (default: 600 with --stack external, where you start it yourself; 120 otherwise); "
+                   "a value given holds for every stack, external included")
     p.add_argument("--hang-after", type=float, default=30.0, metavar="SECONDS", help="a stack that sends no /cmd_vel "
                    "for this long while a run is on has hung: FAIL(sut_crashed), and it is restarted (0: not watched; "
                    "default 30)")
@@ -138,6 +139,8 @@ def _settings(args, results: Path):
     if nav2 and args.our_transport == "dds" and rmw != "rmw_cyclonedds_cpp":
         raise BadInput(f"--our-transport dds speaks rmw_cyclonedds_cpp's services to Nav2, which would run on "
                        f"{rmw or 'the default RMW (Fast DDS)'}: export RMW_IMPLEMENTATION=rmw_cyclonedds_cpp")
+    if args.start_timeout is not None and not args.start_timeout > 0:
+        raise BadInput("--start-timeout: must be > 0")
     bags = Path(args.bags) if args.bags else results.parent / f"{results.stem}_bags"
     return TrialSettings(stack=args.stack, results=results, bags=bags, repeat=getattr(args, "repeat", 1),
                          time_scale=args.time_scale,

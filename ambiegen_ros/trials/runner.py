@@ -20,13 +20,16 @@ import time
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, NamedTuple
 
 from .configs import Prepared
 from .faults import Fault, Injector
+from .reruns import Reruns
 from .rows import TrialLog, counted, utc_stamp
 from .session import StackSession, StackStopped
 from .suite import Entry, Suite
+
+DEFAULT_START_TIMEOUT = 120.0  # s the adapter waits for a stack this command starts
 
 
 @dataclass
@@ -42,7 +45,8 @@ class TrialSettings:
     fault_speed: float | None = None  # m/s: a contact with a person below it is not charged (None: the default)
     early_verdicts: bool = False
     map_upsample: int = 5
-    start_timeout: float = 120.0  # s the adapter waits for the stack (external: for you to start it)
+    start_timeout: float | None = None  # s the adapter waits for the stack (None: 600 for external, where you
+    # start it yourself, else 120; a value given holds for every stack)
     ready_timeout: float = 300.0  # s for the stack's nodes to come up (and back, after a restart)
     hang_after: float = 30.0  # s without /cmd_vel while a run is on: the stack hung (0: not watched)
     max_errors: int = 3
@@ -50,6 +54,12 @@ class TrialSettings:
     budget_s: float | None = None  # wall seconds of sending: no run starts after it (None: all runs)
     extra_env: dict[str, str] = field(default_factory=dict)
     our_transport: str | None = None  # dds: the world and the recorder on Cyclone DDS from PyPI (``lean_parts``)
+
+    def __post_init__(self) -> None:
+        if self.start_timeout is None:
+            from ..launch_logic import EXTERNAL_START_TIMEOUT
+
+            self.start_timeout = EXTERNAL_START_TIMEOUT if self.stack == "external" else DEFAULT_START_TIMEOUT
 
 
 def _number(value: Any) -> float | None:
@@ -130,20 +140,49 @@ class Feed:
         pass
 
 
+class _Ran(NamedTuple):
+    """One run as filed, and what followed it."""
+
+    row: dict
+    outcome: Any
+    wall: float
+    deaths: list
+    restarts: list[dict]
+    stopped: StackStopped | None  # a part that never came back: the run is filed, then the configuration stops
+
+
+def _run_once(session: StackSession, entry: Entry, extra: dict, run_no: int, repeat: int, suite: Suite,
+              p: Prepared, settings: TrialSettings) -> _Ran:
+    """One run on the session: what died before it restarted, the run, what died during it restarted."""
+    before = session.between_runs()
+    bag = session.bags[-1]
+    outcome, sid, wall, w0, deaths = session.run(entry, run_no)
+    stopped = None
+    try:
+        restarts = session.recover(deaths) if deaths else []
+    except StackStopped as exc:
+        restarts, stopped = [{"event": "restart", "process": None, "why": str(exc), "ok": False}], exc
+    events = [{"process": d.process, "part": d.part, "what": d.what} for d in deaths]
+    row = row_of(outcome, entry, suite, p, settings, repeat, session.run_id, sid, bag, wall, w0,
+                 {**extra, "events": events, "restarts": before + restarts, "cpu": session.cpu})
+    return _Ran(row, outcome, wall, deaths, restarts, stopped)
+
+
 def _run_configuration(suite: Suite, p: Prepared, todo: list[tuple[int, Entry]], settings: TrialSettings,
                        log: TrialLog, injector: Injector, clock: dict, say: Callable[[str], None],
                        feed: Feed | None = None) -> int:
-    """One configuration's runs on one session, with the reruns that crashes and our errors call for."""
+    """One configuration's runs on one session, with the reruns that crashes and our errors call for
+    (``reruns.Reruns``). The session's processes stop however this ends."""
     label = p.config.label
-    session = StackSession(settings, suite, p, say, injector)
-    say(f"[{label}] stack {settings.stack}, params {p.path or '(defaults)'}; bag {session.bag}")
     made, errors = 0, 0
     queue: list[tuple[Entry, dict]] = [(entry, {}) for _, entry in todo]
     feed = feed or Feed()
-    try:
+    with StackSession(settings, suite, p, say, injector) as session:
+        say(f"[{label}] stack {settings.stack}, params {p.path or '(defaults)'}; bag {session.bag}")
         if not session.ready():
             raise StackStopped(f"[{label}] the stack's nodes did not come up in {settings.ready_timeout:.0f} s "
                                f"(logs: {session.dir / 'logs'})")
+        policy = Reruns(settings.max_errors, label, str(session.dir / "logs"))
         done = log.done(label)
         while not (settings.budget_s is not None and time.monotonic() - clock["start"] > settings.budget_s):
             if not queue:
@@ -153,44 +192,24 @@ def _run_configuration(suite: Suite, p: Prepared, todo: list[tuple[int, Entry]],
                     break
             entry, extra = queue.pop(0)
             made += 1
-            before = session.between_runs()
-            bag = session.bags[-1]
-            outcome, sid, wall, w0, deaths = session.run(entry, made)
-            stopped = None
-            try:
-                restarts = session.recover(deaths) if deaths else []
-            except StackStopped as exc:  # a part that never came back: this run is still filed, then we stop
-                restarts, stopped = [{"event": "restart", "process": None, "why": str(exc), "ok": False}], exc
             repeat = done[entry.key] + 1
-            events = [{"process": d.process, "part": d.part, "what": d.what} for d in deaths]
-            row = row_of(outcome, entry, suite, p, settings, repeat, session.run_id, sid, bag, wall, w0,
-                         {**extra, "events": events, "restarts": before + restarts, "cpu": session.cpu})
-            log.append(row)
+            ran = _run_once(session, entry, extra, made, repeat, suite, p, settings)
+            log.append(ran.row)
             clock["count"] += 1
-            explained = any(d.part == "ours" for d in deaths) and all(r["ok"] for r in restarts)
-            if counted(row):
+            step = policy.after(ran.row, ran.deaths, ran.restarts, extra, errors)
+            errors = step.errors
+            if step.count:
                 done[entry.key] += 1
-                errors = 0
-                if "crash_rerun_of" not in extra:
-                    feed.took(entry, outcome)
-            elif not explained:  # an error a restart of ours explains is not the kind that repeats
-                errors += 1
-            _say_run(say, clock, label, entry, repeat, settings.repeat, outcome, row, wall)
-            if stopped is not None:
-                raise stopped
-            if outcome.failure_kind == "sut_crashed" and "crash_rerun_of" not in extra:
-                # once more on the fresh stack: does the crash come back?
-                queue.insert(0, (entry, {"crash_rerun_of": {"run_id": session.run_id, "scenario_id": sid,
-                                                            "detail": outcome.detail}}))
+            if step.tell:
+                feed.took(entry, ran.outcome)
+            _say_run(say, clock, label, entry, repeat, settings.repeat, ran.outcome, ran.row, ran.wall)
+            if ran.stopped is not None:
+                raise ran.stopped
+            if step.again is not None:
+                queue.insert(0, (entry, step.again))
                 clock["total"] += 1
-            elif not counted(row) and any(d.part == "ours" for d in deaths):
-                queue.insert(0, (entry, extra))  # ours died: the same run again, on the part restarted
-                clock["total"] += 1
-            if errors >= settings.max_errors:
-                raise StackStopped(f"[{label}] {errors} errors in a row, the last: {outcome.detail[:200]} "
-                                   f"(logs: {session.dir / 'logs'}); rerun the same command to resume")
-    finally:
-        session.close()
+            if step.stop is not None:
+                raise StackStopped(step.stop)
     return made
 
 

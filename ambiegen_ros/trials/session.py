@@ -122,7 +122,7 @@ def stack_nodes(settings: Any, prepared: Prepared, problem_file: Path, bag: Path
     recorded = (NAV2_TOPICS if nav2 else STACK_TOPICS) + (topics.STACK_EVENTS,)
     recorder = NodeSpec("recorder", "recorder", {"output": str(bag), "extra_topics": ",".join(recorded)})
     if nav2:
-        start = 600.0 if settings.stack == "external" else settings.start_timeout
+        start = settings.start_timeout  # the user's, or the stack's default (``TrialSettings``)
         nodes = nav2_stack("", settings.stack, prepared.params, prepared.path, settings.seed, tag, settings.time_scale,
                            settings.map_upsample, start, settings.early_verdicts, prepared.speed, str(problem_file), "")
         if settings.known_failures:
@@ -146,6 +146,32 @@ class StackSession:
 
     def __init__(self, settings: Any, suite: Suite, prepared: Prepared, say: Callable[[str], None],
                  injector: Injector | None = None):
+        """Start it all. A failure part way stops what had started (processes, the driver's node)
+        before the error goes on: a caller that got no session has nothing to close."""
+        try:
+            self._open(settings, suite, prepared, say, injector)
+        except BaseException:
+            self._abandon()
+            raise
+
+    def __enter__(self) -> StackSession:
+        return self
+
+    def __exit__(self, *_exc: Any) -> None:
+        self.close()
+
+    def _abandon(self) -> None:
+        """What a constructor that failed had started: the node shut down, every process stopped."""
+        node, group = getattr(self, "node", None), getattr(self, "group", None)
+        try:
+            if node is not None:
+                node.shutdown()
+        finally:
+            if group is not None:
+                group.stop(timeout=30.0)
+
+    def _open(self, settings: Any, suite: Suite, prepared: Prepared, say: Callable[[str], None],
+              injector: Injector | None) -> None:
         import yaml
 
         from ..campaign import ProcessGroup, discovery_scope, node_argv
@@ -310,7 +336,7 @@ class StackSession:
         route = float(self.problem.evaluate_scenarios([scenario]).metrics["path_length"][0])
         route = route if math.isfinite(route) and route > 0 else 100.0
         k = self.settings.time_scale if self.settings.stack in NAV2_STACKS else 1.0
-        start = 600.0 if self.settings.stack == "external" else self.settings.start_timeout
+        start = self.settings.start_timeout  # the user's, or the stack's default (``TrialSettings``)
         return 2 * RobotSimConfig().time_limit(route, self.prepared.speed) / k + start + RESULT_SLACK_S
 
     def _interrupted(self) -> None:

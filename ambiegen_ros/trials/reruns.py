@@ -1,0 +1,68 @@
+"""What the runner does after each run: count it, run it again, or stop (no ROS, no process).
+
+The policy, from the run's row, its deaths, the restarts they called for and the ``extra`` it ran
+with (``Reruns.after``):
+
+* a row with a verdict of the stack (``rows.counted``) counts for its scenario and ends a streak
+  of errors; the search learns its verdict unless it was a crash's rerun (asked once, not twice);
+* a crash of the stack (``sut_crashed``) runs once more, first, on the fresh stack the session
+  started, marked ``crash_rerun_of``: does the crash come back? A crash's rerun that crashes again
+  is filed, not run a third time;
+* an error during which a part of ours died runs again, first, with the same ``extra``, once the
+  part is back; it is no error in a row when every restart of ours came back (a dead part is not
+  the kind of error that repeats);
+* any other error counts in the streak, and ``max_errors`` in a row stop the configuration with
+  one line naming the last error and the logs.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+from .rows import counted
+
+
+@dataclass(frozen=True)
+class Step:
+    """What to do after one run."""
+
+    count: bool  # the row is a run of the stack: its scenario has one more
+    tell: bool  # the search learns the verdict (``Feed.took``)
+    errors: int  # errors of ours in a row, this run included
+    again: dict | None = None  # the same scenario runs next, with this ``extra`` (None: it does not)
+    stop: str | None = None  # the configuration stops, saying this (None: the runs go on)
+
+
+@dataclass(frozen=True)
+class Reruns:
+    """The rerun policy of one configuration (``label``, its node logs in ``logs``)."""
+
+    max_errors: int
+    label: str
+    logs: str
+
+    def after(self, row: dict, deaths: Sequence[Any], restarts: Sequence[dict], extra: dict, errors: int) -> Step:
+        """``row``: the run as filed (``failure_kind``, ``detail``, ``run_id``, ``scenario_id``);
+        ``deaths``: what died or hung during it (``.part``: stack | ours); ``restarts``: the records of
+        what the session restarted for them (``ok``); ``errors``: errors in a row before it."""
+        ours = any(d.part == "ours" for d in deaths)
+        rerun = "crash_rerun_of" in extra
+        if counted(row):
+            step = Step(count=True, tell=not rerun, errors=0)
+        else:  # an error a restart of ours explains is not the kind that repeats
+            step = Step(count=False, tell=False, errors=errors if ours and all(r["ok"] for r in restarts)
+                        else errors + 1)
+        again = None
+        if row.get("failure_kind") == "sut_crashed" and not rerun:  # once more on the fresh stack
+            again = {"crash_rerun_of": {"run_id": row.get("run_id"), "scenario_id": row.get("scenario_id"),
+                                        "detail": row.get("detail")}}
+        elif not step.count and ours:  # ours died: the same run again, on the part restarted
+            again = dict(extra)
+        stop = None
+        if step.errors >= self.max_errors:
+            stop = (f"[{self.label}] {step.errors} errors in a row, the last: {str(row.get('detail') or '')[:200]} "
+                    f"(logs: {self.logs}); rerun the same command to resume")
+        return Step(step.count, step.tell, step.errors, again, stop)
+
+
+__all__ = ["Reruns", "Step"]
