@@ -25,7 +25,11 @@ then jumps to the world's stamps, so it fails at once. When lifecycle nodes stay
 ``restart_after`` s, the client asks the manager ``is_active``; the manager answers only when no
 bringup of its own is running (its services share the bringup's callback group), so an answer
 ``false`` means it gave up: the client asks it to ``CLEANUP`` (inactive nodes back to unconfigured)
-and ``STARTUP`` again, at most ``restarts`` times.
+and ``STARTUP`` again, at most ``restarts`` times. A CLEANUP that fails is a restart spent, with no
+STARTUP after it (its nodes are not back in the state a bringup starts from). Each request to
+the manager has ``answer_within`` s to be answered, checked as ``missing()`` is polled: one
+unanswered by then (a manager that died or hung with the request out) is dropped, its answer
+ignored should it come, and a later attempt may follow; so is one out when ``forget_active`` runs.
 """
 from __future__ import annotations
 
@@ -44,9 +48,11 @@ STARTUP, CLEANUP = 0, 6  # ManageLifecycleNodes' commands
 
 class Nav2Client:
     def __init__(self, node: Any, action_name: str, lifecycle_nodes: list[str], costmap_services: list[str],
-                 logger: Any, manager: str = "", restarts: int = 0, restart_after: float = 20.0):
+                 logger: Any, manager: str = "", restarts: int = 0, restart_after: float = 20.0,
+                 answer_within: float = 60.0):
         """``node``: the adapter's transport node (either backend); ``manager``: the lifecycle
-        manager's node name ('' = never restart a failed bringup)."""
+        manager's node name ('' = never restart a failed bringup); ``answer_within``: seconds the
+        manager has to answer each request (a bringup it runs meanwhile delays its answers)."""
         self.node, self.logger = node, logger
         self.action = node.create_action_client(ACTION_TYPE, action_name)
         self.action_name = action_name
@@ -62,8 +68,10 @@ class Nav2Client:
         self.manager = manager.strip().strip("/")
         self.allowed_restarts, self.restart_after = int(restarts) if self.manager else 0, float(restart_after)
         self.restarts = 0  # bringups asked for so far
+        self.answer_within = float(answer_within)
         self._inactive_since: float | None = None
-        self._restarting = False
+        self._request: tuple[str, float, int] | None = None  # to the manager, unanswered: what, deadline, number
+        self._requests = 0
 
     # --- readiness ------------------------------------------------------------------------------
     def missing(self) -> list[str]:
@@ -102,12 +110,18 @@ class Nav2Client:
     def restarts_left(self) -> int:
         return max(0, self.allowed_restarts - self.restarts)
 
+    @property
+    def _restarting(self) -> bool:
+        """A request to the manager is out (and not past its deadline)."""
+        return self._request is not None
+
     def _restart_if_given_up(self, inactive: bool) -> None:
         """Lifecycle nodes inactive for ``restart_after`` s: ask the manager whether it gave up."""
+        now = time.monotonic()
+        self._expire(now)
         if not inactive or self.restarts_left <= 0:
             self._inactive_since = None
             return
-        now = time.monotonic()
         if self._inactive_since is None:
             self._inactive_since = now
         if self._restarting or now - self._inactive_since < self.restart_after:
@@ -115,35 +129,61 @@ class Nav2Client:
         asked = self._client(IS_ACTIVE, f"/{self.manager}/is_active")
         if not asked.service_is_ready():
             return
-        self._restarting = True
-        asked.call_async(asked.new_request()).add_done_callback(self._on_is_active)
+        self._call(asked, asked.new_request(), "is_active", self._on_is_active)
 
-    def _on_is_active(self, future: Any) -> None:
-        response = future.result()
+    def _call(self, client: Any, request: Any, what: str, then: Any) -> None:
+        """Send ``request``; ``then(response)`` when it is answered before its deadline and while it is
+        still the request out (not dropped by ``_expire`` or ``forget_active``)."""
+        self._requests += 1
+        number = self._requests
+        self._request = (what, time.monotonic() + self.answer_within, number)
+
+        def done(future):
+            if self._request is None or self._request[2] != number:
+                return  # too late: the state moved on without it
+            self._request = None
+            then(future.result())
+
+        client.call_async(request).add_done_callback(done)
+
+    def _expire(self, now: float) -> None:
+        """Drop a request the manager left unanswered past its deadline: a later attempt may follow."""
+        if self._request is None or now <= self._request[1]:
+            return
+        what = self._request[0]
+        self._request, self._inactive_since = None, now
+        self.logger.warning(f"{self.manager} did not answer {what} within {self.answer_within:g} s (gone, or hung?): "
+                            f"dropped; asked again after {self.restart_after:g} s if nodes stay inactive "
+                            f"({self.restarts_left} restart(s) left)")
+
+    def _on_is_active(self, response: Any) -> None:
         if response is None or response.success:  # busy or active: the nodes' own states will tell
-            self._restarting, self._inactive_since = False, time.monotonic()
+            self._inactive_since = time.monotonic()
             return
         self.restarts += 1
         inactive = [n for n in self.lifecycle_nodes if n not in self.active]
         self.logger.warning(f"Nav2's bringup gave up ({', '.join(inactive)} not active after "
                             f"{self.restart_after:g} s; {self.manager} is not active): asking it to clean up and start "
                             f"again (restart {self.restarts}, {self.restarts_left} left)")
-        self._manage(CLEANUP, lambda ok: self._manage(STARTUP, self._on_startup))
+        self._manage(CLEANUP, self._on_cleanup)
 
     def _manage(self, command: int, then: Any) -> None:
         client = self._client(MANAGE_NODES, f"/{self.manager}/manage_nodes")
-        request = client.new_request(command=command)
+        what = {CLEANUP: "CLEANUP", STARTUP: "STARTUP"}.get(command, f"command {command}")
+        self._call(client, client.new_request(command=command), what,
+                   lambda response: then(bool(response is not None and response.success)))
 
-        def done(future):
-            response = future.result()
-            then(bool(response is not None and response.success))
-
-        client.call_async(request).add_done_callback(done)
+    def _on_cleanup(self, ok: bool) -> None:
+        if ok:
+            self._manage(STARTUP, self._on_startup)
+            return
+        self._inactive_since = time.monotonic()
+        self.logger.warning(f"{self.manager}: CLEANUP failed (a node not inactive?): no STARTUP after it; restart "
+                            f"{self.restarts} spent, {self.restarts_left} left")
 
     def _on_startup(self, ok: bool) -> None:
         self.logger.warning(f"{self.manager}: the new bringup {'succeeded' if ok else 'failed too'}")
         self.forget_active()  # every node is asked again
-        self._restarting, self._inactive_since = False, None
 
     def watch_transitions(self, qos: Any, on_leave: Any) -> None:
         """Each lifecycle node's ``transition_event``: a node leaving ``active`` (its manager took the
@@ -162,9 +202,11 @@ class Nav2Client:
     def forget_active(self) -> None:
         """A process of the stack died: its successor starts inactive, so ask every node again before the
         next goal (a goal sent to a restarting Nav2 is rejected, which is no failure of the scenario).
-        A question the dead node never answered is forgotten too, or its node would never be asked again."""
+        A question the dead node never answered is forgotten too, or its node would never be asked again;
+        so is a request to the lifecycle manager (it may be the one that died), and its answer if it comes."""
         self.active.clear()
         self._asking.clear()
+        self._request, self._inactive_since = None, None
 
     def clear_costmaps(self) -> None:
         for service in self.costmap_services:
