@@ -157,7 +157,9 @@ class ProcessGroup:
     """Node subprocesses with their logs in one folder; stopped with SIGINT, SIGKILL as a last resort.
 
     Each process leads a process group of its own, so that a stop reaches what it started too
-    (``ros2 launch`` and its servers, ``ros2 run`` and its node)."""
+    (``ros2 launch`` and its servers, ``ros2 run`` and its node), and a terminal's Ctrl-C reaches
+    the command alone, which stops them in order. Each is told this process's pid
+    (``signals.child_env``): a node whose command is gone, even by SIGKILL, stops on its own."""
 
     def __init__(self, log_dir: Path, env: dict[str, str], env_of: dict[str, dict[str, str]] | None = None):
         self.log_dir = Path(log_dir)
@@ -170,13 +172,18 @@ class ProcessGroup:
 
     def start_argv(self, name: str, argv: list[str]) -> subprocess.Popen:
         """Any command (a node of ours, ``ros2 launch ...``), its output in ``<log_dir>/<name>.log``."""
+        from .ros.transport.signals import child_env
+
         self.log_dir.mkdir(parents=True, exist_ok=True)
         with open(self.log_dir / f"{name}.log", "ab") as log:
-            self.procs[name] = subprocess.Popen(argv, env={**self.env, **self.env_of.get(name, {})}, stdout=log,
-                                                stderr=subprocess.STDOUT, start_new_session=True)
+            self.procs[name] = subprocess.Popen(argv, env=child_env({**self.env, **self.env_of.get(name, {})}),
+                                                stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
         return self.procs[name]
 
     def stop(self, order: list[str] | None = None, timeout: float = 15.0) -> None:
+        """Each process in ``order`` (default: all), one after the other: SIGINT to its group, up to
+        ``timeout`` s for it to finish its work (a recorder finalises its MCAP), then SIGKILL to what
+        is left of the group."""
         for name in order or list(self.procs):
             proc = self.procs.get(name)
             if proc is None or proc.poll() is not None:
@@ -229,6 +236,35 @@ class Campaign:
         self.out.mkdir(parents=True, exist_ok=True)
         self.suite.unlink(missing_ok=True)  # written by this run's generator, not left from another
         start = time.monotonic()
+        interrupted = False
+        try:  # a stop signal while the nodes start stops the ones started, as one later does
+            self._start_nodes()
+            generator = self.procs["generator"]
+            while generator.poll() is None:
+                if time.monotonic() - start > spec.timeout:
+                    generator.send_signal(signal.SIGINT)
+                    break
+                if self.procs["recorder"].poll() is not None:
+                    break  # without a recorder nothing is logged: stop early
+                if progress:
+                    progress(self, time.monotonic() - start)
+                time.sleep(0.2)
+        except KeyboardInterrupt:  # Ctrl-C, or SIGTERM/SIGHUP/SIGINT as signals.Stopped
+            interrupted = True
+        finally:
+            self._stop_all()
+        summary = self._summary(time.monotonic() - start)
+        summary["interrupted"] = interrupted
+        from .ros.transport.signals import signal_name, stop_signal
+
+        if stop_signal() is not None:
+            summary["stopped_by"] = signal_name(stop_signal())
+        (self.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+        return summary
+
+    def _start_nodes(self) -> None:
+        """Recorder first (it hears everything), then the stack or the sim workers, the generator last."""
+        spec = self.spec
         self._start("recorder", "ambiegen_ros.nodes.recorder", ros_params(
             output=str(self.mcap.resolve()), extra_topics=",".join(STACK_TOPICS) if spec.stack else None))
         if spec.stack:
@@ -272,26 +308,6 @@ class Campaign:
                 **spec.generator_params,
             ),
         )
-        generator = self.procs["generator"]
-        interrupted = False
-        try:
-            while generator.poll() is None:
-                if time.monotonic() - start > spec.timeout:
-                    generator.send_signal(signal.SIGINT)
-                    break
-                if self.procs["recorder"].poll() is not None:
-                    break  # without a recorder nothing is logged: stop early
-                if progress:
-                    progress(self, time.monotonic() - start)
-                time.sleep(0.2)
-        except KeyboardInterrupt:
-            interrupted = True
-        finally:
-            self._stop_all()
-        summary = self._summary(time.monotonic() - start)
-        summary["interrupted"] = interrupted
-        (self.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-        return summary
 
     def _start_stack(self) -> None:
         """robot_world + nd_driver + sut_adapter: the full model's loop, step for step, over ROS topics."""
@@ -300,7 +316,8 @@ class Campaign:
 
     def _stop_all(self) -> None:
         """Generator first (it may still be writing timeouts), then workers, recorder last."""
-        time.sleep(0.3)  # let the last results reach the recorder
+        if "generator" in self.procs:
+            time.sleep(0.3)  # let the last results reach the recorder
         self.group.stop(["generator"] + [n for n in self.procs if n not in ("generator", "recorder")] + ["recorder"])
 
     def _summary(self, elapsed: float) -> dict[str, Any]:

@@ -465,6 +465,6 @@ def summary_table(summary: dict[str, Any]) -> str:
     if codes:
         rows.append(("exit codes", ", ".join(f"{name} {code}" for name, code in codes.items())))
     if summary.get("interrupted"):
-        rows.append(("interrupted", "yes (Ctrl-C)"))
+        rows.append(("interrupted", f"yes ({summary.get('stopped_by') or 'Ctrl-C'})"))
     width = max(len(label) for label, _ in rows)
     return "\n".join([f"campaign {summary.get('run_id')}"] + [f"  {label:<{width}}  {text}" for label, text in rows])

@@ -40,28 +40,65 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+STOPPABLE = ("campaign", "replay", "experiment", "rerun", "compare", "stack-search")
+"""Commands with processes, pools or files to close: SIGTERM, SIGHUP and SIGINT stop them alike, the
+children stopped and waited for, and the exit status is 128 + the signal's number."""
+
+
 def main(argv: list[str] | None = None) -> int:
     """Parse, check the dependencies the command needs, run it; bad input is one line, exit status 2."""
+    import signal
+
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:  # a background job of a script: Ctrl-C is ours again
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     argv = sys.argv[1:] if argv is None else list(argv)
-    parser = build_parser(argv[0] if argv else None)
-    args = parser.parse_args(argv)
+    try:
+        parser = build_parser(argv[0] if argv else None)
+        args = parser.parse_args(argv)
+    except KeyboardInterrupt:
+        return 128 + signal.SIGINT
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_BAD_INPUT
-    from ..core.attributes import ScenarioError
-    from ..core.errors import BadInput, ConfigError
-    from ..deps import broken_environment
+    return _run(args)
 
-    if args.command != "doctor" and broken_environment(f"ambiegen {args.command}"):  # fail before any work
-        return EXIT_BAD_INPUT
+
+def _run(args: argparse.Namespace) -> int:
+    """The command, its errors as one line, a stop signal as its exit status (``signals.install``)."""
+    import signal
+
+    stop_signal, previous = None, None
     try:
-        return int(args.func(args) or 0)
-    except (BadInput, ScenarioError, ConfigError) as exc:
-        print(f"ambiegen {args.command}: error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print(f"ambiegen {args.command}: interrupted", file=sys.stderr)
-        return 130
+        from ..core.attributes import ScenarioError
+        from ..core.errors import BadInput, ConfigError
+        from ..deps import broken_environment
+
+        if args.command != "doctor" and broken_environment(f"ambiegen {args.command}"):  # fail before any work
+            return EXIT_BAD_INPUT
+        if args.command in STOPPABLE:
+            from ..ros.transport import signals
+
+            previous = signals.install(raise_stop=True)
+            stop_signal = signals.stop_signal
+        try:
+            code = int(args.func(args) or 0)
+        except (BadInput, ScenarioError, ConfigError) as exc:
+            print(f"ambiegen {args.command}: error: {exc}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        signum = stop_signal() if stop_signal else None
+        if signum:  # the command stopped its work and said what it kept
+            print(f"ambiegen {args.command}: stopped by {signal.Signals(signum).name}", file=sys.stderr)
+            return 128 + signum
+        return code
+    except KeyboardInterrupt as exc:
+        signum = getattr(exc, "signum", None) or (stop_signal and stop_signal()) or signal.SIGINT
+        print(f"ambiegen {args.command}: interrupted ({signal.Signals(signum).name})", file=sys.stderr)
+        return 128 + signum
+    finally:
+        if previous is not None:
+            from ..ros.transport import signals
+
+            signals.restore(previous)
 
 
-__all__ = ["COMMANDS", "REGISTRARS", "build_parser", "main"]
+__all__ = ["COMMANDS", "REGISTRARS", "STOPPABLE", "build_parser", "main"]

@@ -70,9 +70,18 @@ def _run_task_guarded(task: dict[str, Any]) -> dict[str, Any]:
         return {"algorithm": task["algorithm"], "run": task["run"], "error": traceback.format_exc()}
 
 
-def _ignore_sigint() -> None:
-    """Pool workers leave Ctrl-C to the parent, which stops them (no half-written results)."""
+def _ignore_sigint(parent: int | None = None) -> None:
+    """Pool workers leave Ctrl-C and a hangup (the terminal's, sent to the whole process group) to the
+    parent, which stops them with SIGTERM (a run's file is written whole or not at all); a parent
+    that is gone, even by SIGKILL, stops them too (``signals.watch_parent``)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if hasattr(signal, "SIGHUP"):  # POSIX
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    if parent is not None:
+        from ..ros.transport.signals import PARENT_VAR, watch_parent
+
+        watch_parent({PARENT_VAR: str(parent)})
 
 
 def _surrogate_run(problem, settings) -> dict[str, Any]:
@@ -223,7 +232,8 @@ def run_experiment(spec: ExperimentSpec, out: Path, jobs: int | None = None, res
             for task in tasks:
                 take(_run_task_guarded(task))
         elif tasks:
-            pool = multiprocessing.get_context("spawn").Pool(min(jobs, len(tasks)), initializer=_ignore_sigint)
+            pool = multiprocessing.get_context("spawn").Pool(min(jobs, len(tasks)), initializer=_ignore_sigint,
+                                                            initargs=(os.getpid(),))
             try:
                 results = pool.imap_unordered(_run_task_guarded, tasks)
                 for _ in tasks:

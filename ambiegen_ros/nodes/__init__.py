@@ -36,7 +36,8 @@ def run_node(
     label: str, make: Callable[[], Any], finish: Callable[[Any], int | None] | None = None, doc: str | None = None,
     drain: bool = False,
 ) -> int:
-    """The shared ``main()`` of every node: build it, spin until SIGINT/SIGTERM or done, clean up.
+    """The shared ``main()`` of every node: build it, spin until SIGINT/SIGTERM/SIGHUP, its parent's
+    death (``signals.watch_parent``) or done, clean up.
 
     ``make`` returns an object with a ``node``; a bad parameter or config, a missing or too old
     library (``deps``), or, on rclpy, an unbuilt ``ambiegen_msgs`` (``unusable_messages``: checked
@@ -49,6 +50,10 @@ def run_node(
         print(f"usage: {label} [--ros-args -p NAME:=VALUE ... | --params-file FILE.yaml]\n")
         print(doc.strip())
         return 0
+    from ..ros.transport import signals
+
+    signals.install()  # SIGINT/SIGTERM/SIGHUP stop the node, even when started with SIGINT ignored
+    signals.watch_parent()  # the command that started it is gone: stop (its nodes never outlive it)
     from ..deps import broken_environment
 
     if broken_environment(label):
