@@ -303,6 +303,7 @@ class Campaign:
                 config_file=spec.config,
                 min_subscribers=spec.workers + spec.remote_workers + 1,
                 min_workers=spec.workers + spec.remote_workers,
+                min_recorders=1,  # no scenario before the recorder reads every topic it records (the stack's too)
                 subscriber_wait=300.0,  # a bound, not a wait: it ends once every worker matches (busy machines start slowly)
                 result_timeout=spec.result_timeout,
                 **spec.generator_params,

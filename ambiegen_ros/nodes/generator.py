@@ -35,12 +35,18 @@ Parameters: problem (thermostat | robot | vehicle), algorithm (ga | nsga2 | rand
 offspring (0 = the paper's), seed (-1 = drawn and recorded), profile (fidelity profile: replication | refined; '' = the config
 file's problem_config.profile, else replication), config_file (run config YAML), mode (surrogate |
 in_the_loop), run_id, suite_file (write the final suite there as JSON; '' = none),
-min_subscribers, min_workers, subscriber_wait (s), exit_when_done, status_period (s),
+min_subscribers, min_workers, min_recorders, subscriber_wait (s), exit_when_done, status_period (s),
 result_timeout (s), worker_timeout (s), worker_wait (s), max_attempts, max_in_flight.
 The run config (latched, and in the recorder's MCAP metadata) records the profile.
+
+No scenario goes out before the recorders are ready (``/ambiegen/recorder_status``: each reads
+every topic it was told to record, a robot's ``/scan`` and ``/cmd_vel`` included), so a bag holds
+the first run from its first message: at least ``min_recorders`` of them (``ambiegen campaign``: its
+one), and every recorder heard or seen in the graph, within the same ``subscriber_wait`` bound as
+subscribers and workers.
 Topics: publishes /ambiegen/run_config (latched), /ambiegen/status, /ambiegen/<problem>/scenarios,
 /ambiegen/<problem>/not_sent and SIM_TIMEOUT records on /ambiegen/results; subscribes
-/ambiegen/results and /ambiegen/workers.
+/ambiegen/results, /ambiegen/workers and /ambiegen/recorder_status.
 """
 from __future__ import annotations
 
@@ -61,7 +67,7 @@ from ..core.problem import PROFILES, Evaluation
 from ..ros import conversions, topics
 from ..ros.conversions import ScenarioMeta
 from ..ros.limits import check_name
-from ..ros.qos import DEFAULT, LATCHED
+from ..ros.qos import DEFAULT, LATCHED, Qos
 from ..ros.transport import create_node
 from ..sims.known_failures import is_known
 from ..sims.outcome import Outcome
@@ -69,6 +75,7 @@ from .execution import RemoteExecution
 from . import run_node
 
 SLICE_S = 0.05  # longest stretch of search work between two executor turns
+RECORDER_STATUS_QOS = Qos(reliable=True, transient_local=True, depth=10)  # each recorder's last status, all of them
 
 
 def loop_evaluation(outcomes: list, f1=lambda o: o.f1) -> Evaluation:
@@ -106,7 +113,8 @@ class Generator:
         self.run_id = check_name(p("run_id", "", "run id ('' = generated)") or f"run-{uuid.uuid4().hex[:8]}", "run_id")
         self.min_subscribers = p("min_subscribers", 1, "scenario subscribers to wait for before publishing")
         self.min_workers = p("min_workers", 0, "sim workers (heartbeats) to wait for before publishing")
-        self.subscriber_wait = p("subscriber_wait", 10.0, "seconds to wait for subscribers and workers")
+        self.min_recorders = p("min_recorders", 0, "recorders to hear ready (every topic to record read) before publishing")
+        self.subscriber_wait = p("subscriber_wait", 10.0, "seconds to wait for subscribers, workers and recorders")
         self.exit_when_done = p("exit_when_done", True, "shut down when every scenario is settled")
         status_period = p("status_period", 0.5, "seconds between run status messages")
         if self.mode not in ("surrogate", "in_the_loop"):
@@ -136,6 +144,7 @@ class Generator:
         self.pub_not_sent = n.create_publisher(
             topics.SCENARIO_TYPES[self.problem.name], topics.not_sent(self.problem.name), topics.NOT_SENT_QOS
         )
+        self.recorders = self.listen_to_recorders()
 
         self.state = "waiting"
         self.waiting_since = time.monotonic()
@@ -159,15 +168,19 @@ class Generator:
         if self.state == "waiting":
             subscribers = self.remote.pub_scenarios.subscription_count()
             workers = len(self.remote.dispatcher.alive(now))
-            matched = subscribers >= self.min_subscribers and workers >= self.min_workers
+            recorders, expected = self.recorders_ready()
+            matched = subscribers >= self.min_subscribers and workers >= self.min_workers and recorders >= expected
             if matched or now - self.waiting_since > self.subscriber_wait:
                 if not matched:
                     self.node.logger.warning(
-                        f"{subscribers} of {self.min_subscribers} subscribers and {workers} of "
-                        f"{self.min_workers} workers after {self.subscriber_wait:g} s; going on"
+                        f"{subscribers} of {self.min_subscribers} subscribers, {recorders} of {expected} recorders "
+                        f"ready and {workers} of {self.min_workers} workers after {self.subscriber_wait:g} s; going on"
                     )
                 else:
-                    self.node.logger.info(f"{subscribers} subscribers and {workers} workers: starting")
+                    without = sorted({t for _, gone in self.recorders.values() for t in gone.split(",") if t})
+                    self.node.logger.info(
+                        f"{subscribers} subscribers, {recorders} recorders ready and {workers} workers: starting"
+                        + (f" (recorded without {', '.join(without)})" if without else ""))
                 if self.mode == "surrogate":
                     self.state = "searching"
                 else:
@@ -196,6 +209,23 @@ class Generator:
                 self.close()
             if (self.closed or self.mode == "surrogate") and self.remote.done():
                 self.finish()
+
+    def listen_to_recorders(self) -> dict[str, tuple[bool, str]]:
+        """Recorder node -> (ready, the topics it goes on without), as their latched statuses say."""
+        self.node.create_subscription(topics.RECORDER_STATUS_TYPE, topics.RECORDER_STATUS, self.on_recorder_status,
+                                      RECORDER_STATUS_QOS)
+        return {}
+
+    def on_recorder_status(self, msg) -> None:
+        values = {kv.key: kv.value for kv in msg.values}
+        self.recorders[str(msg.name)] = (values.get("state") == "ready", values.get("missing", ""))
+
+    def recorders_ready(self) -> tuple[int, int]:
+        """Recorders that said they are ready, and how many must: ``min_recorders``, or more if more
+        were heard (one still waiting holds the start) or are in the graph (their status on its way)."""
+        ready = sum(1 for ok, _ in self.recorders.values() if ok)
+        seen = len(self.node.publishers_info(topics.RECORDER_STATUS))
+        return ready, max(self.min_recorders, len(self.recorders), seen)
 
     def begin_execution(self) -> None:
         self.remote.begin()

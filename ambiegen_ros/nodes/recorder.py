@@ -14,24 +14,33 @@ and ``ambiegen campaign`` name it ``<run id>_<utc time>.mcap``), ``overwrite`` (
 ``output`` is refused with exit status 2, as rosbag2 does; true: it is replaced), ``flush_period``
 (s), ``compression`` (zstd | lz4 | none), ``extra_topics`` (comma-separated ``topic`` or
 ``topic=pkg/msg/Type`` entries to record besides the AmbieGen topics: a robot's ``/scan``,
-``/odom``, ``/tf`` ...), ``discover`` (also record other topics found under ``/ambiegen``).
+``/odom``, ``/tf`` ...), ``topic_wait`` (s to wait for a publisher of every extra topic),
+``discover`` (also record other topics found under ``/ambiegen``).
 
 An extra topic is subscribed once a publisher of it shows up, with that publisher's type and
 reliability and durability (as ``ros2 bag record`` adapts to the offered QoS): a best-effort
 laser is read best-effort, ``/tf_static`` and a map transient-local, so late samples and latched
-ones are both kept. Until then it is looked for every second.
+ones are both kept. The stack that publishes them may start after the recorder, so until every
+extra topic has a reader matched to a publisher the graph is looked at every ``WAIT_PERIOD``
+seconds, and the recorder says on ``/ambiegen/recorder_status`` (latched) that it is still
+waiting; then that it is ready, and the generator sends its first scenario (``min_recorders``),
+so a bag holds every run from its first message. A topic with no publisher after ``topic_wait``
+seconds is named in one warning line, the status says ready with it missing, and it is still
+looked for every second (as is anything new under ``/ambiegen``).
 """
 from __future__ import annotations
 
 import json
 import sys
+import time
 from datetime import datetime, timezone
 from pathlib import Path
 
 from .. import __version__
 from ..ros import topics
 from ..ros.mcap_log import McapLog, log_file_name
-from ..ros.qos import DEFAULT, Qos
+from ..ros.conversions import STATUS_OK, STATUS_WARN, key_values
+from ..ros.qos import DEFAULT, LATCHED, Qos
 from ..ros.transport import create_node
 from ..ros.types import get_registry
 from . import run_node
@@ -45,6 +54,7 @@ READER_DEPTH = 5000
 FAST_DDS_READER_DEPTH = 2000
 TIMELINE_TOPICS = frozenset(topics.timeline(p) for p in topics.TIMELINE_TYPES)
 CANNOT_WRITE = 3  # exit status: the disk is full (or the file may not grow): the log is kept up to the last flush
+WAIT_PERIOD = 0.05  # s between two looks at the graph while an extra topic has no matched reader yet
 
 
 def offered_qos(offered: list) -> Qos:
@@ -66,6 +76,8 @@ class Recorder:
         flush_period = n.declare_parameter("flush_period", 1.0, "seconds between flushes (data safe from SIGKILL)")
         compression = n.declare_parameter("compression", "zstd", "zstd | lz4 | none")
         extra = n.declare_parameter("extra_topics", "", "extra 'topic=pkg/msg/Type' entries to record, comma-separated")
+        self.topic_wait = n.declare_parameter(
+            "topic_wait", 30.0, "seconds to wait for a publisher of every extra topic before saying ready without it")
         self.discover = n.declare_parameter("discover", True, "also record other topics under /ambiegen")
         default_depth = FAST_DDS_READER_DEPTH if (n.rmw or "").startswith("rmw_fastrtps") else READER_DEPTH
         self.reader_depth = n.declare_parameter(
@@ -83,24 +95,34 @@ class Recorder:
         self._config_seen = False
         self.cannot_write: OSError | None = None  # set once the file takes no more (the recorder stops)
         self.flushed_at: datetime | None = None
-        for topic, typename, qos in topics.run_topics():
-            self.record(topic, typename, qos)
+        # said first (before the run topics are read): a generator that sees this recorder sees it waiting
+        self.pub_status = n.create_publisher(topics.RECORDER_STATUS_TYPE, topics.RECORDER_STATUS, LATCHED)
+        self.waiting_since = time.monotonic()
+        self.readers: dict[str, object] = {}  # extra topic -> its subscription
         self.pending: dict[str, str] = {}  # extra topics not subscribed yet -> type ('' = the publisher's)
         for entry in extra.split(","):
             if entry.strip():
                 topic, _, typename = entry.partition("=")
                 self.pending[topic.strip()] = typename.strip()
+        self.wanted = list(self.pending)  # every extra topic, in the order given
+        self.publish_status(ready=not self.wanted, missing=self.wanted)
+        for topic, typename, qos in topics.run_topics():
+            self.record(topic, typename, qos)
+            self.pending.pop(topic, None)  # an extra topic that is a run topic is read already
         n.create_timer(flush_period, self.flush)
         if self.discover or self.pending:
             n.create_timer(1.0, self.discover_topics)
+        if self.wanted:
+            self.wait_timer = n.create_timer(WAIT_PERIOD, self.await_topics)
         n.logger.info(f"recording to {self.path} ({n.middleware})")
 
-    def record(self, topic: str, typename: str, qos: Qos) -> None:
+    def record(self, topic: str, typename: str, qos: Qos):
+        """Read ``topic`` into its own channel; its subscription (None: read already, or a type unknown here)."""
         if self.log.channel_id(topic) is not None:
-            return
+            return None
         if not self.registry.has(typename):
             self.node.logger.warning(f"not recording {topic}: unknown type {typename}")
-            return
+            return None
         channel = self.log.add_channel(topic, typename, qos)
         is_config = topic == topics.RUN_CONFIG
 
@@ -121,7 +143,7 @@ class Recorder:
         # FAST_DDS_READER_DEPTH: on Fast DDS a reliable flood starves the other readers)
         reliable = qos.reliable and topic not in TIMELINE_TOPICS
         reader_qos = Qos(reliable=reliable, transient_local=qos.transient_local, depth=max(qos.depth, self.reader_depth))
-        self.node.create_subscription(typename, topic, on_bytes, reader_qos, raw=True)
+        return self.node.create_subscription(typename, topic, on_bytes, reader_qos, raw=True)
 
     def store_run_config(self, data: bytes) -> None:
         msg = self.registry.deserialize(data, topics.RUN_CONFIG_TYPE)
@@ -139,8 +161,8 @@ class Recorder:
 
     def discover_topics(self) -> None:
         for topic, types in self.node.topic_names_and_types():
-            if not types or self.log.channel_id(topic) is not None:
-                continue
+            if not types or self.log.channel_id(topic) is not None or topic == topics.RECORDER_STATUS:
+                continue  # recorders' statuses steer the start; they are not part of the run
             wanted = topic in self.pending
             if not (wanted or (self.discover and topic.startswith(topics.NAMESPACE + "/"))):
                 continue
@@ -148,7 +170,44 @@ class Recorder:
             if wanted and not offered:
                 continue  # only subscribers so far: wait for a publisher and its QoS
             typename = self.pending.pop(topic, "") or types[0]
-            self.record(topic, typename, offered_qos(offered))
+            reader = self.record(topic, typename, offered_qos(offered))
+            if reader is not None and topic in self.wanted:
+                self.readers[topic] = reader
+
+    def missing(self) -> list[str]:
+        """Extra topics not read yet: no publisher so far, or a reader not matched to one yet
+        (a backend that cannot tell counts a reader made for a publisher it saw as matched)."""
+        def unmatched(reader) -> bool:
+            count = getattr(reader, "publisher_count", None)
+            return count is not None and count() == 0
+
+        return [t for t in self.wanted if t in self.pending or (t in self.readers and unmatched(self.readers[t]))]
+
+    def await_topics(self) -> None:
+        """Until every extra topic is read (or ``topic_wait`` ran out): subscribe what has a
+        publisher now, then say ready once none is missing."""
+        if self.pending:
+            self.discover_topics()
+        missing = self.missing()
+        waited = time.monotonic() - self.waiting_since
+        if missing and waited < self.topic_wait:
+            return
+        self.wait_timer.cancel()
+        if missing:
+            self.node.logger.warning(
+                f"no publisher of {', '.join(missing)} after {self.topic_wait:g} s: recording without "
+                f"{'it' if len(missing) == 1 else 'them'} (still looked for every second)")
+        else:
+            self.node.logger.info(f"reading all {len(self.wanted)} extra topics after {waited:.2f} s: ready")
+        self.publish_status(ready=True, missing=missing)
+
+    def publish_status(self, ready: bool, missing: list[str]) -> None:
+        n = self.node
+        text = ("waiting for " if not ready else "ready without " if missing else "ready") + ", ".join(missing)
+        self.pub_status.publish(n.new_message(
+            topics.RECORDER_STATUS_TYPE, level=STATUS_WARN if ready and missing else STATUS_OK,
+            name=n.fully_qualified_name, message=text, hardware_id=str(self.path),
+            values=key_values(n.new_message, {"state": "ready" if ready else "waiting", "missing": ",".join(missing)})))
 
     def flush(self) -> None:
         if self.cannot_write is not None:

@@ -32,6 +32,13 @@ WORLD_MARKERS = f"{NAMESPACE}/world/markers"
 STACK_EVENTS = f"{NAMESPACE}/stack_events"
 STACK_EVENTS_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
 
+# a recorder's readiness, latched (one per recorder): level OK once every topic it was told to
+# record (``extra_topics``) has a publisher and a matched reader (values: state = ready), WARN when
+# its wait ran out first (values: missing = those topics), before that state = waiting. The
+# generator sends no scenario before its recorders say ready (``min_recorders``)
+RECORDER_STATUS = f"{NAMESPACE}/recorder_status"
+RECORDER_STATUS_TYPE = "diagnostic_msgs/msg/DiagnosticStatus"
+
 RUN_CONFIG_TYPE = "ambiegen_msgs/msg/RunConfig"
 STATUS_TYPE = "ambiegen_msgs/msg/RunStatus"
 WORKERS_TYPE = "diagnostic_msgs/msg/DiagnosticStatus"
