@@ -52,8 +52,16 @@ def run_node(
         return 0
     from ..ros.transport import signals
 
-    signals.install()  # SIGINT/SIGTERM/SIGHUP stop the node, even when started with SIGINT ignored
-    signals.watch_parent()  # the command that started it is gone: stop (its nodes never outlive it)
+    previous = signals.install()  # SIGINT/SIGTERM/SIGHUP stop the node, even when started with SIGINT ignored
+    try:
+        signals.watch_parent()  # the command that started it is gone: stop (its nodes never outlive it)
+        return _build_and_spin(label, make, finish, drain)
+    finally:
+        signals.restore(previous)  # for a caller in a process of its own (a test)
+
+
+def _build_and_spin(label: str, make: Callable[[], Any], finish: Callable[[Any], int | None] | None,
+                    drain: bool) -> int:
     from ..deps import broken_environment
 
     if broken_environment(label):

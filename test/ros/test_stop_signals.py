@@ -163,3 +163,29 @@ def test_an_experiment_killed_by_sigkill_leaves_no_worker(tmp_path):
             json.loads(text)
     finally:
         cmd.kill_all()
+
+
+def test_a_node_whose_named_parent_is_not_its_own_watches_it_and_stops_when_it_dies(tmp_path, ros_domain):
+    """A launcher between command and node (``ros2 run``): the node polls the named command's pid
+    and stops, finalising its log, once that process is gone."""
+    from ambiegen_ros.ros.transport.signals import PARENT_VAR
+
+    command = subprocess.Popen(["sleep", "600"])  # stands for the command; the test is the launcher
+    bag = tmp_path / "watched.mcap"
+    env = dict(os.environ, ROS_DOMAIN_ID=str(ros_domain), **{PARENT_VAR: str(command.pid)})
+    proc = subprocess.Popen([sys.executable, "-m", "ambiegen_ros.nodes.recorder", "--ros-args", "-p",
+                             f"output:={bag}"], cwd=REPO, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+    try:
+        for line in proc.stdout:
+            if "recording to" in line:
+                break
+        assert proc.poll() is None  # its named parent lives: it records on
+        command.kill()
+        command.wait()
+        assert proc.wait(timeout=120) == 0
+        assert mcap_summary(bag) is not None
+    finally:
+        for p in (proc, command):
+            if p.poll() is None:
+                p.kill()
