@@ -76,9 +76,10 @@ def _common(p: argparse.ArgumentParser, many: bool, search: bool = False) -> Non
     p.add_argument("--start-timeout", type=float, default=None, metavar="SECONDS", help="seconds the adapter waits "
                    "for the stack (default: 600 with --stack external, where you start it yourself; 120 otherwise); "
                    "a value given holds for every stack, external included")
-    p.add_argument("--hang-after", type=float, default=30.0, metavar="SECONDS", help="a stack that sends no /cmd_vel "
-                   "for this long while a run is on has hung: FAIL(sut_crashed), and it is restarted (0: not watched; "
-                   "default 30)")
+    p.add_argument("--hang-after", type=float, default=30.0, metavar="SECONDS", help="a stack whose every sign of "
+                   "life (/cmd_vel, navigate_to_pose feedback and status) is silent, or a node of it that is not "
+                   "scheduled, for this long while a run is on has hung: FAIL(sut_crashed), and it is restarted (0: "
+                   "not watched; default 30)")
     p.add_argument("--inject", action="append", default=[], metavar="TARGET:SIGNAL@RUN[+S][/HOLD]",
                    help="a fault on purpose, to see the runs survive it: e.g. nd_driver:SIGKILL@2 kills nd_driver when "
                         "this invocation's 2nd run has its robot moving (+S: S seconds later; /HOLD: SIGCONT a "

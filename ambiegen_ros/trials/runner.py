@@ -48,7 +48,7 @@ class TrialSettings:
     start_timeout: float | None = None  # s the adapter waits for the stack (None: 600 for external, where you
     # start it yourself, else 120; a value given holds for every stack)
     ready_timeout: float = 300.0  # s for the stack's nodes to come up (and back, after a restart)
-    hang_after: float = 30.0  # s without /cmd_vel while a run is on: the stack hung (0: not watched)
+    hang_after: float = 30.0  # s of silence or of a node not scheduled while a run is on: hung (0: not watched)
     max_errors: int = 3
     faults: list[Fault] = field(default_factory=list)  # injected on purpose (``faults``)
     budget_s: float | None = None  # wall seconds of sending: no run starts after it (None: all runs)

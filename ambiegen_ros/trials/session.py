@@ -5,11 +5,14 @@ The session starts what a campaign starts (``launch_logic``: ``robot_world`` + t
 scenarios from a node in this process (``SuiteDriver``, as the generator does). While a run is on,
 it watches every process (``supervise.Watch``): one that exits, is killed or is stopped is an event
 on ``/ambiegen/stack_events``, which the adapter turns into the run's end (the stack's:
-FAIL(sut_crashed), certified as any failure; ours: an error record), and so does a stack that stops
-commanding (no ``/cmd_vel`` for ``hang_after`` s while the run is on). After the run the session
-restarts what died (the whole stack for a stack's process: a fresh stack; the part alone for one
-of ours; the recorder into a new file, the old one recovered) and says how long it took. Faults
-can be injected on a run's events (``faults``). Nothing here decides verdicts: the adapter does.
+FAIL(sut_crashed), certified as any failure; ours: an error record), and so does a stack that hung
+while the run is on: a node of it not scheduled for ``hang_after`` s, or every sign of life it shows
+on the graph (``/cmd_vel``, its navigator's action feedback and goal status) silent that long; a
+robot held still by its own safety layer is no hang (docs/choices.md, "A held robot is not a hung
+stack"). After the run the session restarts what died (the whole stack for a stack's process: a
+fresh stack; the part alone for one of ours; the recorder into a new file, the old one recovered)
+and says how long it took. Faults can be injected on a run's events (``faults``). Nothing here
+decides verdicts: the adapter does.
 """
 from __future__ import annotations
 
@@ -22,11 +25,12 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
+from ..ros.qos import Qos
 from .configs import NAV2_STACKS, Prepared
 from .faults import Injector
 from .rows import utc_stamp
 from .suite import Entry, Suite, problem_of
-from .supervise import Death, Watch, core_shares, cpu_by_part
+from .supervise import SCHEDULED_FLOOR_S, Death, Scheduling, Watch, core_shares, cpu_by_part
 
 STOP_SIGNALS = (signal.SIGSTOP, signal.SIGTSTP, signal.SIGCONT)  # a hang, not a death
 
@@ -34,6 +38,9 @@ RESULT_SLACK_S = 60.0  # beyond the adapter's own guard, before the runner calls
 MOVING_MPS = 0.05  # a run's robot moves once its odometry says this fast (injected faults wait for it)
 DISCOVERY_S = 2.0  # a new participant has heard the others on the domain by then (SPDP on one host)
 GONE_TIMEOUT_S = 60.0  # a killed part's endpoints leave the graph within its lease (DDS: about 10 s)
+# a stack's signs of life on the graph (``_hangs``): its commands, its navigator's feedback and goal states
+SIGNS = ("/cmd_vel", "/navigate_to_pose/_action/feedback", "/navigate_to_pose/_action/status")
+SIGN_QOS = Qos(reliable=False, transient_local=False, depth=10)  # best effort: matches any writer
 
 
 def last_words(log: Path, width: int = 300) -> str:
@@ -218,8 +225,9 @@ class StackSession:
         self.pub_events = self.node.create_publisher(topics.STACK_EVENTS_TYPE, topics.STACK_EVENTS, STREAM)
         if self.injector.faults:  # when a run's robot moves: only injected faults wait for it (50 Hz of odometry)
             self.node.create_subscription("nav_msgs/msg/Odometry", "/odom", self._on_odom, STREAM)
-        self.cmd_vel_seen = time.monotonic()
-        self._cmd_sub = False
+        self.alive_at = time.monotonic()  # the stack's last sign of life on the graph (``_watch_signs``)
+        self.signs: dict[str, Any] = {}  # topic -> our subscription to it
+        self.scheduling = Scheduling()
         self.driver.announce(self.run_id, {"trials": prepared.record(), "stack": settings.stack,
                                            "problem": suite.problem, "problem_config": suite.problem_config,
                                            "suite": suite.sources, "repeat": settings.repeat,
@@ -241,19 +249,50 @@ class StackSession:
         if self.in_flight and self.moved_at is None and abs(float(msg.twist.twist.linear.x)) > MOVING_MPS:
             self.moved_at = time.monotonic()
 
-    def _on_cmd_vel(self, _msg: Any) -> None:
-        self.cmd_vel_seen = time.monotonic()
+    def _on_sign(self, _data: Any, _receive_ns: int = 0) -> None:
+        self.alive_at = time.monotonic()
 
-    def _watch_cmd_vel(self) -> None:
-        """Subscribe to the stack's commands once it publishes them, with the type it offers."""
-        if self._cmd_sub:
-            return
-        offered = self.node.publishers_info("/cmd_vel")
-        if offered:
-            from ..ros.qos import STREAM
+    def _watch_signs(self) -> None:
+        """Subscribe to each sign of life (``SIGNS``) once the stack offers it, by the type offered,
+        undecoded: any sample is enough."""
+        for topic in SIGNS:
+            if topic in self.signs:
+                continue
+            offered = self.node.publishers_info(topic)
+            if offered and self._can_read(offered[0].typename):
+                self.signs[topic] = self.node.create_subscription(offered[0].typename, topic, self._on_sign,
+                                                                  SIGN_QOS, raw=True)
 
-            self.node.create_subscription(offered[0].typename, "/cmd_vel", self._on_cmd_vel, STREAM)
-            self._cmd_sub = True
+    def _can_read(self, typename: str) -> bool:
+        """The DDS backend knows an action's wire types from ``ros.interfaces`` once told (rclpy knows
+        what is installed); a type known to neither is no sign we can read."""
+        registry = getattr(self.node, "_registry", None)
+        if registry is None or registry.has(typename):
+            return True
+        from ..ros import interfaces
+
+        action = typename.rsplit("_", 1)[0]
+        if action in interfaces.ACTIONS:
+            interfaces.ensure(registry, action)
+            return True
+        return False
+
+    def _hangs(self, now: float) -> list[Death]:
+        """The stack hung: a node of it not scheduled for ``hang_after`` s, whatever the topics say;
+        or, once it showed a sign of life in this run, every sign it shows silent that long (a robot
+        held still by a collision monitor, whose commands stop, is no hang while its navigator's
+        feedback goes on; a stack silent before its first sign, as Nav2 is until its goal, has not
+        started: the adapter's start timeout guards that)."""
+        after = self.settings.hang_after
+        if after <= 0:
+            return []
+        out = self.scheduling.poll(self.group, self.sent_at, max(after, SCHEDULED_FLOOR_S), now)
+        quiet = now - max(self.alive_at, self.sent_at)
+        if self.signs and self.alive_at > self.sent_at and not self.hung_said and quiet > after:
+            self.hung_said = True
+            out.append(Death("the stack", "stack", f"went silent (hung: nothing on {', '.join(sorted(self.signs))} for "
+                                                   f"{quiet:.0f} s)", "signs of life"))
+        return out
 
     def event(self, death: Death) -> None:
         """Say it, log it (``events.jsonl`` beside the bag), publish it for the adapter and the bag."""
@@ -279,11 +318,8 @@ class StackSession:
         self._take_deaths()
         if self.in_flight:
             self.signalled += self.injector.tick(self.group, self.run_no, self.moved_at)
-            self._watch_cmd_vel()
-            quiet = now - max(self.cmd_vel_seen, self.sent_at)
-            if self._cmd_sub and not self.hung_said and self.settings.hang_after > 0 and quiet > self.settings.hang_after:
-                self.hung_said = True
-                death = Death("the stack", "stack", f"stopped commanding: no /cmd_vel for {quiet:.0f} s", "cmd_vel")
+            self._watch_signs()
+            for death in self._hangs(now):
                 self.event(death)
                 self.deaths.append(death)
 

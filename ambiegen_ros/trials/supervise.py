@@ -7,7 +7,9 @@ signal); Nav2's servers are children of ``ros2 launch``, which prints a line for
 dies (``[ERROR] [controller_server-2]: process has died [pid 1234, exit code -9, ...]``); a stopped
 process (SIGSTOP: state ``T`` in ``/proc/<pid>/stat``) is a hang. ``Watch.poll`` returns each such
 event once, as a ``Death``; the session publishes it on ``/ambiegen/stack_events`` and restarts
-what it must.
+what it must. ``Scheduling.poll`` adds the nodes of the stack that stop being scheduled while a run
+is on (their threads run no more, which no state letter need show), judged by ``/proc``'s
+nanoseconds of run time (``run_ns``).
 """
 from __future__ import annotations
 
@@ -191,6 +193,91 @@ class Watch:
         return out
 
 
+SCHEDULED_FLOOR_S = 2.0  # an idle node of ours runs every 0.2 s or sooner (about 1 ms a second): 10x that
+TICKS_WINDOW_S = 100.0  # without schedstat, ticks of 10 ms: an idle node accrues one about every 10 s
+
+
+def run_ns(pid: int) -> int | None:
+    """Nanoseconds the process's threads have run (``/proc/<pid>/task/*/schedstat``), None when the
+    kernel does not say or the process is gone. It moves at every wake-up: an idle DDS node of ours
+    runs about 1 ms a second, which ``cpu_seconds``' 10 ms ticks show once in 10 s."""
+    try:
+        tasks = list(Path(f"/proc/{pid}/task").iterdir())
+    except OSError:
+        return None
+    total, seen = 0, False
+    for task in tasks:
+        try:
+            total += int((task / "schedstat").read_text().split()[0])
+            seen = True
+        except (OSError, IndexError, ValueError):
+            continue
+    return total if seen else None
+
+
+def children(pid: int) -> list[int]:
+    """The direct children of ``pid`` (every thread's)."""
+    out: list[int] = []
+    try:
+        tasks = list(Path(f"/proc/{pid}/task").iterdir())
+    except OSError:
+        return out
+    for task in tasks:
+        try:
+            out += [int(k) for k in (task / "children").read_text().split()]
+        except (OSError, ValueError):
+            continue
+    return out
+
+
+def stack_leaves(group: Any) -> list[tuple[str, int]]:
+    """(session process, pid) of each live process of the stack that has no child: its nodes. A
+    process that holds others (``ros2 launch``, ``ros2 run``) waits on them by design, so they are
+    judged, not it."""
+    out = []
+    for name, proc in list(group.procs.items()):
+        if part_of(name) != "stack" or proc.poll() is not None:
+            continue
+        out += [(name, pid) for pid in [proc.pid, *descendants(proc.pid)] if not children(pid)]
+    return out
+
+
+class Scheduling:
+    """Nodes of the stack that stop being scheduled while a run is on: a process whose threads have
+    not run at all for ``window`` s (a frozen cgroup, an uninterruptible wait, a tracer's stop) is
+    hung whatever the topics say: a navigator's feedback goes on while a frozen controller holds the
+    robot. A process stopped by a signal (state T) is left to ``Watch``, which names it so. Each
+    process once a run; ``run`` (any value) changes with each run and starts the clocks afresh."""
+
+    def __init__(self) -> None:
+        self.run: Any = None
+        self.last: dict[int, tuple[float, float]] = {}  # pid -> (its run time, when it last changed)
+        self.said: set[int] = set()
+
+    def poll(self, group: Any, run: Any, window: float, now: float | None = None) -> list[Death]:
+        now = time.monotonic() if now is None else now
+        if run != self.run:
+            self.run, self.last, self.said = run, {}, set()
+        out = []
+        for name, pid in stack_leaves(group):
+            precise = run_ns(pid)
+            used = float(precise) if precise is not None else cpu_seconds(pid)
+            if used is None or stopped(pid):
+                self.last.pop(pid, None)  # a stop is Watch's; after a SIGCONT the clock starts again
+                continue
+            before = self.last.get(pid)
+            if before is None or before[0] != used:
+                self.last[pid] = (used, now)
+                continue
+            quiet = now - before[1]
+            if quiet >= (window if precise is not None else max(window, TICKS_WINDOW_S)) and pid not in self.said:
+                self.said.add(pid)
+                who = name if pid == group.procs[name].pid else node_name(pid) or name  # as Watch names it
+                out.append(Death(who, "stack",
+                                 f"stopped being scheduled (hung: no CPU time for {quiet:.0f} s)", name))
+        return out
+
+
 def alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
@@ -201,4 +288,5 @@ def alive(pid: int) -> bool:
     return True
 
 
-__all__ = ["Death", "OURS", "Watch", "alive", "descendants", "exit_words", "node_name", "part_of", "stopped"]
+__all__ = ["Death", "OURS", "SCHEDULED_FLOOR_S", "Scheduling", "Watch", "alive", "children", "descendants",
+           "exit_words", "node_name", "part_of", "run_ns", "stack_leaves", "stopped"]
