@@ -227,6 +227,7 @@ class StackSession:
             self.node.create_subscription("nav_msgs/msg/Odometry", "/odom", self._on_odom, STREAM)
         self.alive_at = time.monotonic()  # the stack's last sign of life on the graph (``_watch_signs``)
         self.signs: dict[str, Any] = {}  # topic -> our subscription to it
+        self.unreadable: set[str] = set()  # offered signs of a type this node cannot read
         self.scheduling = Scheduling()
         self.driver.announce(self.run_id, {"trials": prepared.record(), "stack": settings.stack,
                                            "problem": suite.problem, "problem_config": suite.problem_config,
@@ -259,9 +260,17 @@ class StackSession:
             if topic in self.signs:
                 continue
             offered = self.node.publishers_info(topic)
-            if offered and self._can_read(offered[0].typename):
-                self.signs[topic] = self.node.create_subscription(offered[0].typename, topic, self._on_sign,
-                                                                  SIGN_QOS, raw=True)
+            if not offered or topic in self.unreadable:
+                continue
+            try:
+                if self._can_read(offered[0].typename):
+                    self.signs[topic] = self.node.create_subscription(offered[0].typename, topic, self._on_sign,
+                                                                      SIGN_QOS, raw=True)
+                    continue
+            except Exception as exc:  # noqa: BLE001 - a type this node cannot load: a sign it cannot read
+                self.say(f"[{self.prepared.config.label}] {topic} ({offered[0].typename}) not read as a sign of "
+                         f"life: {exc}")
+            self.unreadable.add(topic)
 
     def _can_read(self, typename: str) -> bool:
         """The DDS backend knows an action's wire types from ``ros.interfaces`` once told (rclpy knows
