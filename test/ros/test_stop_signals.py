@@ -44,7 +44,8 @@ def joined(out: Path):
     return lambda: log.exists() and "joined" in log.read_text(errors="replace")
 
 
-@pytest.mark.parametrize("how, sig", [("timeout", signal.SIGTERM), ("ignore_int", signal.SIGINT)])
+@pytest.mark.parametrize("how, sig", [("timeout", signal.SIGTERM), ("ignore_int", signal.SIGINT),
+                                      ("plain", signal.SIGHUP)])
 def test_a_campaign_stops_its_nodes_and_finalises_its_log(tmp_path, ros_domain, how, sig):
     out = tmp_path / "campaign"
     cmd = campaign(out, ros_domain, how)
@@ -137,6 +138,8 @@ def test_an_experiment_stops_its_pool_and_resumes(tmp_path, how, sig):
         kept = run_files(out)
         for name, text in kept.items():
             assert json.loads(text)["run"] in (0, 1, 2), name  # whole files only
+        if how != "timeout":
+            return  # one resume is enough: the stop is the same
         if len(kept) == 6:
             pytest.skip("every run ended before the stop took effect: nothing left to resume")
         again = Command(["experiment", "--problem", "thermostat", "--algorithms", "ga,random", "--runs", "3",
