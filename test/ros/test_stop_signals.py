@@ -192,3 +192,29 @@ def test_a_node_whose_named_parent_is_not_its_own_watches_it_and_stops_when_it_d
         for p in (proc, command):
             if p.poll() is None:
                 p.kill()
+
+
+HANDLER_SCRIPT = r"""
+import os, signal, sys
+from ambiegen_ros.ros.transport import signals
+signal.signal(signal.SIGINT, signal.SIG_IGN)  # as a script's background job inherits it
+signals.install(raise_stop=True)
+try:
+    os.kill(os.getpid(), signal.SIGHUP)
+    signal.pause()
+except signals.Stopped as exc:
+    print("stopped", exc.signum)
+os.kill(os.getpid(), signal.SIGINT)  # counted, not raised: the cleanup it would cut is bounded
+print("first", signals.stop_signal())
+stops = []
+signals.register(object(), lambda: stops.append(1))  # a node made after the stop stops at once
+print("node stopped", len(stops))
+"""
+
+
+def test_the_first_stop_signal_raises_once_and_stops_a_node_made_later():
+    """``signals`` in a process of its own (its handlers would otherwise stay in the test's)."""
+    run = subprocess.run([sys.executable, "-c", HANDLER_SCRIPT], cwd=REPO, capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.split("\n")[:3] == [f"stopped {signal.SIGHUP}", f"first {signal.SIGHUP}", "node stopped 1"]
