@@ -52,4 +52,10 @@ else
   "${PIP[@]}" -c "$LOCK" --build-constraint "$LOCK" -e '.[test]'
   echo "$LOCK" > .venv/ambiegen-install  # test/test_deps.py then checks every pin is what is installed
 fi
+# numba's cache of robot_world's compiled loops (laser, contact), written once here: on a fresh clone
+# every world process of the tests compiled them at once otherwise (10-50 s each on a loaded machine,
+# against about 1 s to load the cache). The world warms them before it joins the graph (HostedWorld.warm_up).
+.venv/bin/python -c "from ambiegen_ros.sims.hosted_world import HostedWorld
+from ambiegen_ros.sims.robot import RobotSimConfig
+HostedWorld(RobotSimConfig()).warm_up()" || echo "setup: warning: could not warm the robot world's compiled loops"
 echo "setup: ready ($(.venv/bin/python --version), ambiegen $(.venv/bin/ambiegen --version | cut -d' ' -f2))"

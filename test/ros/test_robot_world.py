@@ -33,10 +33,11 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from ambiegen_ros.problems import get_problem  # noqa: E402
-from ambiegen_ros.ros import conversions  # noqa: E402
+from ambiegen_ros.ros import conversions, topics  # noqa: E402
 from ambiegen_ros.ros.qos import DEFAULT, LATCHED, Qos  # noqa: E402
 from ambiegen_ros.sims.full_model import full_model_executor  # noqa: E402
 from helpers.nd_maps import FAILING_SAFETY_DIST, busy_loops, certified_maps  # noqa: E402
+from helpers.graph_wait import publishing, traced, wait_for  # noqa: E402
 from helpers.sut_graph import Driver  # noqa: E402
 from helpers.wire import wire_emulation  # noqa: E402
 from test_full_models import box, easy_robot_elements  # noqa: E402
@@ -44,13 +45,14 @@ from test_full_models import box, easy_robot_elements  # noqa: E402
 pytestmark = pytest.mark.skipif(os.environ.get("AMBIEGEN_TRANSPORT", "auto") == "rclpy",
                                 reason="these tests drive the DDS backend")
 FAILURES = json.loads((REPO / "test" / "data" / "robot_nd_failures.json").read_text())
+STACK_UP = (("/odom", "world"), ("/cmd_vel", "nd"))  # a scenario goes out once both answer (see graph_wait)
 LOCKSTEP = {"lockstep": True, "time_scale": 0.0, "scan_rate": 10.0, "sim.dt": 0.1,  # the full model's loop
             "cmd_vel_stamped": True, "paired_start": True}
 
 
 def test_the_world_alone_speaks_nav2s_topics(graph):
     procs, node = graph()
-    procs.start("world", "sim_nodes.robot_world", time_scale=5.0, cmd_timeout=0.0)
+    traced(procs).start("world", "sim_nodes.robot_world", time_scale=5.0, cmd_timeout=0.0)
     got: dict[str, list] = {k: [] for k in ("clock", "tf", "tf_static", "odom", "scan", "collision")}
     node.create_subscription("rosgraph_msgs/msg/Clock", "/clock", lambda m: got["clock"].append(m.clock.sec * 10**9 + m.clock.nanosec),
                              Qos(reliable=False, depth=10))
@@ -64,18 +66,20 @@ def test_the_world_alone_speaks_nav2s_topics(graph):
     pub_pose = node.create_publisher("geometry_msgs/msg/PoseWithCovarianceStamped", "/initialpose", DEFAULT)
     pub_cmd = node.create_publisher("geometry_msgs/msg/Twist", "/cmd_vel", DEFAULT)
     make = node.new_message
-    assert node.spin_until(lambda: pub_cmd.subscription_count() and pub_pose.subscription_count() and got["clock"], 120)
+    wait_for(node, procs, lambda: pub_cmd.subscription_count() and pub_pose.subscription_count() and got["clock"], 120,
+             "/clock from the world, or no match of its /cmd_vel and /initialpose")
     grid = box()
     info = make("nav_msgs/msg/MapMetaData", resolution=1.0, width=30, height=30, origin=conversions.pose(make, 0.0, 0.0))
     pub_map.publish(make("nav_msgs/msg/OccupancyGrid", header=conversions.header(make, node.now_ns()), info=info,
                          data=np.where(grid, 100, 0).astype(np.int8).ravel()))
     pub_pose.publish(make("geometry_msgs/msg/PoseWithCovarianceStamped", header=conversions.header(make, node.now_ns()),
                           pose=make("geometry_msgs/msg/PoseWithCovariance", pose=conversions.pose(make, 26.0, 15.0))))
-    assert node.spin_until(lambda: any(abs(m.pose.pose.position.x - 26.0) < 1e-9 for m in got["odom"]), 60), procs.logs()
+    wait_for(node, procs, lambda: any(abs(m.pose.pose.position.x - 26.0) < 1e-9 for m in got["odom"]), 60,
+             "odometry at the initial pose")
     # full speed ahead, 3 m before the east wall: the body stops there and the flag goes up
     pub_cmd.publish(make("geometry_msgs/msg/Twist", linear=make("geometry_msgs/msg/Vector3", x=0.8)))
     hit = lambda: got["collision"] and got["collision"][-1] and got["odom"][-1].pose.pose.position.x > 27  # noqa: E731
-    assert node.spin_until(hit, 120), procs.logs()
+    wait_for(node, procs, hit, 120, "collision at the east wall")
     node.spin_until(lambda: False, 0.5)
     last = got["odom"][-1]
     assert 28.0 < last.pose.pose.position.x < 29.0 and last.twist.twist.linear.x == 0.0
@@ -99,16 +103,16 @@ def test_the_clock_carries_each_simulated_time_once(graph):
     """At real time the world ticks at 100 Hz and steps at 50: a tick that did not step sends no
     /clock (every Nav2 node hears it; issue 58). Counted against the odometry, one per step."""
     procs, node = graph()
-    procs.start("world", "sim_nodes.robot_world", time_scale=1.0, cmd_timeout=0.0)
+    traced(procs).start("world", "sim_nodes.robot_world", time_scale=1.0, cmd_timeout=0.0)
     clocks: list[int] = []
     odoms: list[int] = []
     node.create_subscription("rosgraph_msgs/msg/Clock", "/clock", lambda m: clocks.append(m.clock.sec * 10**9 + m.clock.nanosec),
                              Qos(reliable=False, depth=200))
     node.create_subscription("nav_msgs/msg/Odometry", "/odom", lambda m: odoms.append(conversions.stamp_ns(m.header)),
                              Qos(reliable=False, depth=200))
-    assert node.spin_until(lambda: len(clocks) > 5 and len(odoms) > 5, 120), procs.logs()
+    wait_for(node, procs, lambda: len(clocks) > 5 and len(odoms) > 5, 120, "/clock and odometry from the world")
     c0, o0 = len(clocks), len(odoms)
-    assert node.spin_until(lambda: len(odoms) >= o0 + 150, 120), procs.logs()
+    wait_for(node, procs, lambda: len(odoms) >= o0 + 150, 120, "150 more odometry messages")
     span = clocks[c0 - 1:]
     assert all(b > a for a, b in zip(span, span[1:])), "a /clock message repeated a time"
     assert len(span) - 1 <= len(odoms) - o0 + 2, (len(span), len(odoms) - o0)
@@ -140,12 +144,13 @@ def test_the_nd_stack_behind_the_adapter_gives_the_in_process_verdicts_on_a_load
     keep = [i for i, w in enumerate(wires[:-1]) if [v.failure_kind for v in wires[:i]].count(w.failure_kind) < 2]
     scs, wires = [scs[i] for i in keep] + scs[-1:], [wires[i] for i in keep] + wires[-1:]
     procs, node = graph()
-    procs.start("world", "sim_nodes.robot_world", **LOCKSTEP)
+    traced(procs).start("world", "sim_nodes.robot_world", **LOCKSTEP)
     procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True, paired_start=True, **{"sim.safety_dist": FAILING_SAFETY_DIST})
     procs.start("adapter", "sim_nodes.sut_adapter", problem="robot", worker_id="sut", profile="refined",
                 stall_topic="/nd_driver/stall", plan_topic="/plan", settle_time=0.1, run_invalid=True)
     driver = Driver(node, p)
-    driver.wait_matched()
+    wait_for(node, procs, lambda: driver.pub.subscription_count() >= 2 and publishing(node, *STACK_UP), 120,
+             "stack on the graph (adapter on the scenarios, world on /odom, nd on /cmd_vel)")
     t0 = time.monotonic()
     with busy_loops(3):
         driver.send("nd", scs)
@@ -172,13 +177,14 @@ def test_a_failure_without_a_plan_says_so(graph):
     fails with "no plan" in the verdict (as Nav2 does on a route its planner cannot extract)."""
     p = get_problem("robot", {"profile": "refined"})
     procs, node = graph()
-    procs.start("world", "sim_nodes.robot_world", **LOCKSTEP)
+    traced(procs).start("world", "sim_nodes.robot_world", **LOCKSTEP)
     procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True, paired_start=True, plan_topic="/nd/plan",
                 **{"sim.safety_dist": FAILURES["safety_dist"]})
     procs.start("adapter", "sim_nodes.sut_adapter", problem="robot", worker_id="sut", profile="refined",
                 stall_topic="/nd_driver/stall", plan_topic="/plan", settle_time=0.1)
     driver = Driver(node, p)
-    driver.wait_matched()
+    wait_for(node, procs, lambda: driver.pub.subscription_count() >= 2 and publishing(node, *STACK_UP), 120,
+             "stack on the graph (adapter on the scenarios, world on /odom, nd on /cmd_vel)")
     driver.send("noplan", [p.parse(FAILURES["stall"])])
     (res,) = driver.wait("noplan", 1, 300)  # a safety net: the wait ends with the result
     assert res is not None, procs.logs()
@@ -225,11 +231,13 @@ def test_a_stack_campaign_logs_a_robot_bag_that_replays_to_its_verdicts(tmp_path
     assert math.isfinite(summary["elapsed_s"])
     # the bag's scenarios executed again on a new world + stack + adapter (``ambiegen replay
     # --execute``, the recorded seed): every verdict and objective is the one in the log
-    procs, _ = graph()
-    procs.start("world", "sim_nodes.robot_world", seed=1, **LOCKSTEP)
+    procs, node = graph()
+    traced(procs).start("world", "sim_nodes.robot_world", seed=1, **LOCKSTEP)
     procs.start("nd", "sim_nodes.nd_driver", cmd_vel_stamped=True, paired_start=True)
     procs.start("adapter", "sim_nodes.sut_adapter", problem="robot", worker_id="sut_replay", profile="replication",
                 stall_topic="/nd_driver/stall", plan_topic="/plan", settle_time=0.1)
+    wait_for(node, procs, lambda: publishing(node, *STACK_UP, (topics.WORKERS, "adapter")), 120,
+             "stack on the graph (world on /odom, nd on /cmd_vel, the adapter's heartbeats)")
     report_path = tmp_path / "replay.json"
     run = subprocess.run([sys.executable, "-m", "ambiegen_ros.cli", "replay", str(mcap), "--execute", "--report",
                           str(report_path), "--domain-id", str(ros_domain)],
