@@ -26,6 +26,7 @@ setup(
         ("share/" + PACKAGE + "/launch", glob("launch/*.py")),
         ("share/" + PACKAGE + "/config", glob("config/*.yaml")),
         ("share/" + PACKAGE + "/config/nav2", glob("config/nav2/*.yaml")),
+        ("share/" + PACKAGE + "/config/robots", glob("config/robots/*.yaml")),
         ("share/" + PACKAGE + "/config/nav2/fixes", glob("config/nav2/fixes/*.yaml") + glob("config/nav2/fixes/*.xml")),
         ("share/" + PACKAGE + "/config/foxglove", glob("config/foxglove/*.json")),
         # the message definitions, so the DDS backend can build the types without a ROS install

@@ -17,6 +17,7 @@ reaches an MPPI controller and nothing else.
 from __future__ import annotations
 
 import copy
+import math
 from pathlib import Path
 from typing import Any
 
@@ -169,5 +170,94 @@ def write_params(params: dict, out: str | Path, header: str, overwrite: bool = F
     return out
 
 
+# --- the robot (issue 69) ----------------------------------------------------------------------------
+COSTMAPS = (("local_costmap", "local_costmap"), ("global_costmap", "global_costmap"))
+
+
+def _section(params: dict, *path: str) -> dict | None:
+    node = params
+    for key in (*path, "ros__parameters"):
+        node = node.get(key) if isinstance(node, dict) else None
+    return node if isinstance(node, dict) else None
+
+
+def _cap(section: dict, key: str, limit: float, negative: bool = False) -> None:
+    """``section[key]`` not beyond the base's ``limit`` (never raised; set when absent)."""
+    value = section.get(key)
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+    section[key] = (max(value, -limit) if ok else -limit) if negative else (min(value, limit) if ok else limit)
+
+
+def _controller_limits(section: dict, plugin: str, profile: Any) -> None:
+    """A controller's speed caps within the base's, its accelerations the base's."""
+    (vx, vy, wz), (ax, ay, az) = profile.max_speed, profile.max_accel
+    omni = profile.drive == "omnidirectional"
+    if plugin.startswith("nav2_mppi"):
+        for key, limit, negative in (("vx_max", vx, False), ("vx_min", vx, True), ("wz_max", wz, False)):
+            _cap(section, key, limit, negative)
+        section.update(ax_max=ax, ax_min=-ax, az_max=az)
+        if omni:
+            _cap(section, "vy_max", vy)
+            section["ay_max"] = ay
+        if profile.drive == "ackermann":
+            section.setdefault("AckermannConstraints", {})["min_turning_r"] = profile.min_turning_radius
+    elif plugin.startswith("dwb"):
+        caps = [("max_vel_x", vx, False), ("min_vel_x", vx, True), ("max_vel_theta", wz, False),
+                ("max_speed_xy", math.hypot(vx, vy), False)]
+        for key, limit, negative in caps + ([("max_vel_y", vy, False), ("min_vel_y", vy, True)] if omni else []):
+            _cap(section, key, limit, negative)
+        section.update(acc_lim_x=ax, decel_lim_x=-ax, acc_lim_theta=az, decel_lim_theta=-az)
+        if omni:
+            section.update(acc_lim_y=ay, decel_lim_y=-ay)
+    elif plugin.startswith("nav2_regulated"):
+        for key, limit in (("desired_linear_vel", vx), ("rotate_to_heading_angular_vel", wz)):
+            _cap(section, key, limit)
+        section["max_angular_accel"] = az
+
+
+def with_robot(params: dict, profile: Any) -> dict:
+    """The params with the robot's footprint (or ``robot_radius``), laser and limits in place of
+    the Pioneer's the overlay wrote: each costmap's body and scan sources (``sensor_frame``, ranges
+    no farther than the laser's), each controller's speed caps (never raised) and accelerations,
+    the velocity smoother's, and an Ackermann robot's turning radius in MPPI and Smac's planners."""
+    out = copy.deepcopy(params)
+    laser = profile.lasers[0]
+    for path in COSTMAPS:
+        costmap = _section(out, *path)
+        if costmap is None:
+            continue
+        costmap.pop("footprint", None) if profile.round else costmap.pop("robot_radius", None)
+        if profile.round:
+            costmap["robot_radius"] = profile.radius
+        else:
+            costmap["footprint"] = profile.nav2_footprint()
+        for layer in costmap.values():
+            source = layer.get("scan") if isinstance(layer, dict) else None
+            if isinstance(source, dict):
+                source["sensor_frame"] = laser.frame
+                for key in ("obstacle_max_range", "raytrace_max_range"):
+                    if isinstance(source.get(key), (int, float)):
+                        source[key] = min(source[key], laser.range)
+    from .sims.robot_profile import controllers
+
+    for name, plugin, section in controllers(out):
+        _controller_limits(out["controller_server"]["ros__parameters"][name], plugin, profile)
+    smoother = _section(out, "velocity_smoother")
+    if smoother is not None:
+        limits = list(profile.max_speed)
+        top = smoother.get("max_velocity") if isinstance(smoother.get("max_velocity"), list) else limits
+        low = smoother.get("min_velocity") if isinstance(smoother.get("min_velocity"), list) else [-v for v in limits]
+        smoother["max_velocity"] = [min(float(t), v) for t, v in zip(top, limits)]
+        smoother["min_velocity"] = [max(float(t), -v) for t, v in zip(low, limits)]
+        smoother["max_accel"] = list(profile.max_accel)
+        smoother["max_decel"] = [-a for a in profile.max_accel]
+    planner = _section(out, "planner_server") or {}
+    for name in planner.get("planner_plugins") or []:
+        section = planner.get(name)
+        if profile.drive == "ackermann" and isinstance(section, dict) and "Smac" in str(section.get("plugin", "")):
+            section["minimum_turning_radius"] = profile.min_turning_radius
+    return out
+
+
 __all__ = ["OVERLAY_FILE", "RATES", "WORLD_TOPICS", "for_namespace", "load_yaml", "package_file", "merge_overlay", "merged_params", "scale_nav2_rates", "top_speed",
-           "write_params"]
+           "with_robot", "write_params"]

@@ -26,6 +26,14 @@ Out (stamps are simulated time):
   level ERROR while the body touches a wall (it stops there, as Stage's does), else OK, with every
   scan and on every change; the OK ones tell a judge by stamps that no collision happened so far.
 
+Robot (issue 69): ``robot_profile`` names a shipped profile (``config/robots``: turtlebot4, ...) or
+a profile file; '' is Stage's Pioneer, as before. A profile sets the body, the drive (an
+omnidirectional base takes ``linear.y``; an Ackermann one cannot turn in place), the limits and the
+lasers, over the ``sim.*`` values: each laser is cast from its mount pose and published in its frame
+(``tf_static`` through the profile's frames), the first on ``scan_topic``, any other on its
+profile topic, all at the first laser's ``rate`` rounded to a whole number of steps (``scan_rate``
+is then ignored).
+
 Time: ``sim.dt`` (default 0.02 s, so odometry and TF come at 50 Hz) per step; the world runs
 ``time_scale`` times faster than the wall clock (0 = as fast as it can). With ``lockstep:=true``
 it instead waits after each scan until a velocity command answers it (re-sending the scan every
@@ -103,6 +111,10 @@ class RobotWorldNode:
         self._pending_obstacles: tuple | None = None  # (stamp, Obstacles): for the next map
         self.with_obstacles = bool(topic["obstacles"])
         cfg = sim_options(n, RobotSimConfig, WORLD_FIELDS, defaults={"dt": 0.02})
+        profile = self.profile = _profile(p("robot_profile", "", "the robot: a shipped profile's name (turtlebot4, "
+                                                              "...) or a profile file; '' = Stage's pioneer2dx"))
+        if profile is not None and cfg.dt > 0:
+            scan_rate = 1.0 / (max(1, round(1.0 / (profile.lasers[0].rate * cfg.dt))) * cfg.dt)
         for name, value in (("time_scale", self.time_scale), ("cmd_timeout", cmd_timeout)):
             if not value >= 0:
                 raise ConfigError(f"{name}: must be >= 0")
@@ -113,7 +125,8 @@ class RobotWorldNode:
         ratio = 1.0 / (scan_rate * cfg.dt)
         if ratio < 1 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
             raise ConfigError(f"scan_rate: 1 / (scan_rate x sim.dt) must be a whole number of steps, got {ratio:g}")
-        self.world = HostedWorld(cfg, seed, int(round(ratio)), cmd_timeout, lockstep)
+        self.world = HostedWorld(cfg, seed, int(round(ratio)), cmd_timeout, lockstep, profile)
+        cfg = self.world.cfg  # the profile's limits and first laser over sim.*
         t0 = time.monotonic()
         self.world.warm_up()  # before any endpoint: on the graph, the world can answer at once
         warm_s = time.monotonic() - t0
@@ -126,6 +139,7 @@ class RobotWorldNode:
         make = self._make = n.new_message
         self.pub_odom = n.create_publisher("nav_msgs/msg/Odometry", topic["odom"], SENSOR)
         self.pub_scan = n.create_publisher("sensor_msgs/msg/LaserScan", topic["scan"], SENSOR)
+        self.lasers = self._laser_outputs()  # (frame, beam angles, range, publisher) of each laser
         # relative, as Nav2 remaps them: /tf in the root namespace, /<ns>/tf for a namespaced stack
         self.pub_tf = n.create_publisher("tf2_msgs/msg/TFMessage", "tf", TF)
         self.pub_tf_static = n.create_publisher("tf2_msgs/msg/TFMessage", "tf_static", TF_STATIC)
@@ -151,12 +165,34 @@ class RobotWorldNode:
         self.scan_stamp = -1
         self.last_odom_cdr: bytes | None = None
         self.last_collision: bool | None = None
-        self.pub_tf_static.publish(make("tf2_msgs/msg/TFMessage", transforms=[
-            conversions.transform(make, self.start_ns, self.frames["base"], self.frames["scan"])]))
+        self.pub_tf_static.publish(make("tf2_msgs/msg/TFMessage", transforms=self._static_transforms()))
         n.create_timer(1.0 / clock_rate, self.tick)
         n.logger.info(f"robot world: {'lockstep' if lockstep else f'{self.time_scale:g}x real time'}, step "
                       f"{cfg.dt:g} s, scans at {scan_rate:g} Hz on {topic['scan']}, commands from {topic['cmd_vel']} "
                       f"({n.middleware}); compiled loops ready in {warm_s:.1f} s")
+
+    def _laser_outputs(self) -> list[tuple]:
+        """Each laser's frame, beams, range and publisher: the first on ``scan_topic``, the others
+        (a profile's) on their own topics."""
+        if self.profile is None:
+            return [(self.frames["scan"], self.angles, self.cfg.laser_range, self.pub_scan)]
+        return [(las.frame, las.beam_angles(), las.range,
+                 self.pub_scan if i == 0 else self.node.create_publisher("sensor_msgs/msg/LaserScan", las.topic, SENSOR))
+                for i, las in enumerate(self.profile.lasers)]
+
+    def _static_transforms(self) -> list:
+        """The body's fixed frames: base -> scan on the rotation centre, or the profile's frames and
+        each laser at its mount pose (relative to its parent)."""
+        make, base = self._make, self.frames["base"]
+        if self.profile is None:
+            return [conversions.transform(make, self.start_ns, base, self.frames["scan"])]
+        p, rename = self.profile, (lambda frame: base if frame == self.profile.base_frame else frame)  # noqa: E731
+        out = [conversions.transform(make, self.start_ns, rename(parent), name, x, y, yaw)
+               for name, (parent, x, y, yaw) in p.frames.items()]
+        for las in p.lasers:  # its mount pose relative to its parent: the base pose back through the frames
+            x, y, yaw = _relative(p, las)
+            out.append(conversions.transform(make, self.start_ns, rename(las.parent), las.frame, x, y, yaw))
+        return out
 
     # --- inputs ---------------------------------------------------------------------------------
     def on_obstacles(self, msg: Any) -> None:
@@ -224,10 +260,17 @@ class RobotWorldNode:
             # run would otherwise start this one)
             if not w.awaiting or (self.stamped and conversions.stamp_ns(msg.header) != self.scan_stamp):
                 return
-            w.command(*command)
+            w.command(*command, self._sideways(msg))
             self._advance(MAX_STEPS_PER_TICK)
         else:
-            w.command(*command)
+            w.command(*command, self._sideways(msg))
+
+    def _sideways(self, msg: Any) -> float:
+        """``linear.y`` for an omnidirectional profile (0 otherwise: no other base moves sideways)."""
+        if self.profile is None or self.profile.drive != "omnidirectional":
+            return 0.0
+        vy = float(getattr(msg, "twist", msg).linear.y)
+        return vy if math.isfinite(vy) else 0.0
 
     # --- stepping -------------------------------------------------------------------------------
     def tick(self) -> None:
@@ -281,9 +324,12 @@ class RobotWorldNode:
         self.pub_tf.publish_raw(state_cdr.tf_message(stamp, [(f["map"], f["odom"], 0.0, 0.0, 0.0),
                                                             (f["odom"], f["base"], x, y, yaw)]))
         if scan and w.ready:
-            self.last_scan_msg = conversions.laser_scan(make, stamp, f["scan"], self.angles[0], self.angles[-1], w.scan(),
-                                                        self.cfg.laser_range, self.scan_period)
-            self.pub_scan.publish(self.last_scan_msg)
+            for (frame, angles, max_range, pub), ranges in zip(self.lasers, w.scans()):
+                msg = conversions.laser_scan(make, stamp, frame, angles[0], angles[-1], ranges, max_range,
+                                             self.scan_period)
+                pub.publish(msg)
+                if pub is self.pub_scan:
+                    self.last_scan_msg = msg
             self.last_scan_wall, self.scan_stamp = time.monotonic(), stamp
         if scan and w.ready and self.pub_markers is not None and w.world.obstacles is not None \
                 and self._markers_due():
@@ -314,6 +360,31 @@ class RobotWorldNode:
             self.pub_odom.publish_raw(self.last_odom_cdr)
             self.pub_scan.publish(self.last_scan_msg)
         self.last_scan_wall = time.monotonic()
+
+
+def _profile(name: str) -> Any:
+    """The robot profile a ``robot_profile`` parameter names (None for ''); bad input: one line."""
+    if not name:
+        return None
+    from ambiegen_ros.sims.robot_profile import ProfileError, load_profile
+
+    try:
+        return load_profile(name)
+    except ProfileError as exc:
+        raise ConfigError(f"robot_profile {name}: {exc}") from None
+
+
+def _relative(profile: Any, laser: Any) -> tuple[float, float, float]:
+    """A laser's mount pose relative to its parent frame (the profile keeps it in the base frame)."""
+    x, y, yaw = laser.x, laser.y, laser.yaw
+    chain, at = [], laser.parent
+    while at != profile.base_frame:
+        chain.append(profile.frames[at])
+        at = profile.frames[at][0]
+    for _, fx, fy, fyaw in reversed(chain):  # undo each frame from the base outwards
+        c, s = math.cos(fyaw), math.sin(fyaw)
+        x, y, yaw = c * (x - fx) + s * (y - fy), -s * (x - fx) + c * (y - fy), yaw - fyaw
+    return x, y, yaw
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -38,4 +38,4 @@ def test_help_lists_the_commands_in_their_usual_order():
               if line.startswith("    ") and not line.startswith("     ")]
     assert listed == ["search", "evaluate", "show", "execute", "campaign", "replay", "recover", "rerun", "compare",
                       "stack-search", "experiment",
-                      "nav2-params", "doctor"]
+                      "nav2-params", "robot-profile", "doctor"]

@@ -1,6 +1,8 @@
-"""`ambiegen nav2-params`: your Nav2 params file made ready for AmbieGen's world.
+"""`ambiegen nav2-params` and `ambiegen robot-profile`: your Nav2 params and your robot, made ready
+for AmbieGen's world.
 
-The first of the two commands of a "bring your own Nav2" campaign (docs/external_sut.md): it
+``robot-profile --from-params`` derives a first robot profile (issue 69) from the params (and a
+URDF); ``nav2-params --robot`` writes a profile's robot into the params. The first of the two commands of a "bring your own Nav2" campaign (docs/external_sut.md): it
 writes the file that ``ros2 launch nav2_bringup navigation_launch.py params_file:=...`` takes.
 The work is ``ambiegen_ros.nav2_params``; this module only reads flags and says what it did.
 """
@@ -22,6 +24,7 @@ def cmd_nav2_params(args: argparse.Namespace) -> int:
         raise BadInput(f"the package's overlay {'/'.join(OVERLAY_FILE)} is not installed here: name one with --overlay")
     first, *fixes = args.params.split("+")
     tree = None
+    profile, notes = _robot(args.robot, first)
     try:
         if fixes:  # the merge and the tree of `ambiegen compare --params`, so both run the same stack
             from ..trials.configs import StackConfig, merged
@@ -34,8 +37,13 @@ def cmd_nav2_params(args: argparse.Namespace) -> int:
                 params, tree = with_tree(params, trees, Path(args.output).parent, Path(args.output).stem)
         else:
             params = merged_params(first, overlay, args.time_scale)
+        if profile is not None:
+            from ..nav2_params import with_robot
+
+            params = with_robot(params, profile)
         out = write_params(params, args.output, f"{first}" + (f" + {overlay}" if overlay else "")
                            + "".join(f" + {fix}" for fix in fixes)
+                           + (f" + robot {profile.name} ({profile.source})" if profile is not None else "")
                            + f", Nav2's loop rates x {args.time_scale:g} (time_scale)\n"
                            "written by `ambiegen nav2-params`", overwrite=args.overwrite)
     except (ValueError, FileExistsError) as exc:
@@ -48,7 +56,65 @@ def cmd_nav2_params(args: argparse.Namespace) -> int:
     plugins = [str((server.get(name) or {}).get("plugin", "?")) for name in server.get("controller_plugins") or []]
     print(f"controller{'s' * (len(plugins) != 1)}: {', '.join(plugins) or 'none named'}; top speed "
           + (f"{speed:g} m/s (the time limit divides routes by it)" if speed else "not found (the time limit uses 0.3 m/s)"))
+    if profile is not None:
+        body = f"robot_radius {profile.radius:g} m" if profile.round else f"footprint {profile.nav2_footprint()}"
+        print(f"robot: {profile.name} ({profile.drive}; {body}; laser {profile.lasers[0].frame}); start robot_world "
+              f"with robot_profile:={args.robot}")
+    for note in notes:
+        print(f"note: {note}")
     print(f"start Nav2: ros2 launch nav2_bringup navigation_launch.py use_sim_time:=true params_file:={out}")
+    return 0
+
+
+def _robot(name: str, params_file: str) -> tuple:
+    """The ``--robot`` profile checked against the params' controllers (None: the overlay's Pioneer)."""
+    if not name:
+        return None, []
+    from ..nav2_params import load_yaml
+    from ..sims.robot_profile import ProfileError, check_controller, load_profile
+
+    try:
+        profile = load_profile(name)
+        params = load_yaml(params_file, "params_file")
+        return profile, check_controller(profile, params)
+    except ProfileError as exc:
+        raise BadInput(f"--robot {name}: {exc}") from None
+    except ValueError as exc:
+        raise BadInput(str(exc)) from None
+
+
+def cmd_robot_profile(args: argparse.Namespace) -> int:
+    from ..nav2_params import load_yaml
+    from ..sims.robot_profile import ProfileError
+    from ..sims.robot_profile_derive import derive
+
+    try:
+        params = load_yaml(args.from_params, "--from-params")
+        urdf = Path(args.urdf).read_text() if args.urdf else None
+        profile, data, missing = derive(params, urdf, args.name or Path(args.output).stem)
+    except OSError as exc:
+        raise BadInput(f"--urdf: cannot read {args.urdf}: {exc.strerror}") from None
+    except ProfileError as exc:
+        raise BadInput(f"the derived profile: {exc} (edit the params or the URDF)") from None
+    except ValueError as exc:  # an unreadable YAML file or a URDF that is no XML
+        raise BadInput(str(exc).splitlines()[0]) from None
+    out = Path(args.output)
+    if out.exists() and not args.overwrite:
+        raise BadInput(f"{out} exists (not overwritten; --overwrite replaces it)")
+    import yaml
+
+    header = [f"A first robot profile, derived by `ambiegen robot-profile` from {args.from_params}"
+              + (f" and {args.urdf}" if args.urdf else "") + ".", "Not found there (check these):"]
+    header += [f"  {line}" for line in missing] or ["  nothing"]
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text("".join(f"# {line}\n" for line in header) + yaml.safe_dump(data, sort_keys=False))
+    print(out)
+    body = f"radius {profile.radius:g} m" if profile.round else f"polygon of {len(profile.polygon or ())} vertices"
+    print(f"robot {profile.name}: {profile.drive}, {body}, {profile.max_speed[0]:g} m/s, laser {profile.lasers[0].frame} "
+          f"at ({profile.lasers[0].x:g}, {profile.lasers[0].y:g})")
+    for line in missing:
+        print(f"not found: {line}")
+    print(f"next: ambiegen nav2-params {args.from_params} --robot {out} -o merged.yaml")
     return 0
 
 
@@ -67,4 +133,19 @@ def register(sub) -> None:
     p.add_argument("--time-scale", type=float, default=1.0,
                    help="the campaign's time_scale: Nav2's wall-clock loop rates are multiplied by it (default 1)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing OUT.yaml")
+    p.add_argument("--robot", default="", metavar="NAME|PROFILE.yaml",
+                   help="the robot: a shipped profile (pioneer2dx, turtlebot4, turtlebot3_burger, omni_base, "
+                        "ackermann_car) or your own (ambiegen robot-profile); its footprint, laser and limits replace "
+                        "the Pioneer's, and a controller that cannot drive it is refused (default: the overlay's Pioneer)")
     p.set_defaults(func=cmd_nav2_params)
+
+    p = sub.add_parser("robot-profile", help="a first robot profile from your Nav2 params (footprint, drive, limits) "
+                                             "and URDF (laser pose), saying what it could not find")
+    p.add_argument("--from-params", required=True, metavar="PARAMS.yaml", help="your Nav2 params")
+    p.add_argument("--urdf", default="", metavar="ROBOT.urdf", help="your robot's URDF (expanded, not xacro): the "
+                                                                   "laser's mount pose and its Gazebo sensor")
+    p.add_argument("--name", default="", help="the profile's name (default: OUT's file name)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.yaml", help="the profile to write (never "
+                                                                             "overwritten without --overwrite)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing OUT.yaml")
+    p.set_defaults(func=cmd_robot_profile)

@@ -16,6 +16,9 @@ only velocity commands come in.
   before it steps on, so a controller as slow as it likes sees the same world as one that is
   fast. Its run is then the in-process run, step for step (``sims.robot.drive`` steers one scan
   per step with ``dt`` = the scan period).
+* *Robot profile* (``sims.robot_profile``, issue 69; None: Stage's Pioneer): the body, drive,
+  limits and lasers of the world's robot. Every laser scans when a scan is due (``scans``); a
+  command's sideways speed moves an omnidirectional base only.
 * *Laser noise* comes from a generator seeded with ``seed`` at every new map and teleport, so a
   run is reproducible for its seed whatever came before it.
 """
@@ -37,10 +40,11 @@ class HostedWorld:
     """
 
     def __init__(self, config: Any, seed: int = 0, scan_every: int = 1, cmd_timeout: float = 0.5,
-                 lockstep: bool = False):
+                 lockstep: bool = False, profile: Any = None):
         if not config.dt > 0:
             raise ValueError("dt must be > 0")
-        self.cfg = config
+        self.profile = profile
+        self.cfg = config if profile is None else profile.world_config(config)
         self.seed = int(seed)
         self.scan_every = max(1, int(scan_every))
         self.cmd_timeout = float(cmd_timeout)
@@ -49,7 +53,7 @@ class HostedWorld:
         self.world: RobotWorld | None = None
         self.origin = (0.0, 0.0)
         self.pose0 = (0.0, 0.0, 0.0)  # where a new map puts the robot until a teleport says otherwise
-        self.cmd = (0.0, 0.0)
+        self.cmd: tuple[float, ...] = (0.0, 0.0)
         self.cmd_k = -1  # step at which the held command arrived (-1: none)
         self.awaiting = False  # lockstep: a scan went out and no command answered it yet
         self.next_scan_k = 0  # the step of the next scan (right away after a new map or teleport)
@@ -87,7 +91,7 @@ class HostedWorld:
         if obstacles is not None and self.origin != (0.0, 0.0):
             obstacles = obstacles.shifted(-self.origin[0], -self.origin[1])
         self.world = RobotWorld(np.asarray(grid, dtype=bool), float(resolution), self.cfg, self._local(self.pose0),
-                                np.random.default_rng(self.seed), obstacles=obstacles)
+                                np.random.default_rng(self.seed), obstacles=obstacles, profile=self.profile)
         self._restart()
 
     def teleport(self, x: float, y: float, yaw: float) -> None:
@@ -110,11 +114,11 @@ class HostedWorld:
         self.next_scan_k = self.k
         self.runs += 1
 
-    def command(self, v: float, w: float) -> None:
-        """The controller's latest velocity command (forward m/s, turn rad/s)."""
-        if not (math.isfinite(v) and math.isfinite(w)):
-            raise ValueError(f"velocity command ({v}, {w}) is not finite")
-        self.cmd, self.cmd_k = (float(v), float(w)), self.k
+    def command(self, v: float, w: float, vy: float = 0.0) -> None:
+        """The controller's latest velocity command (forward m/s, turn rad/s, sideways m/s)."""
+        if not (math.isfinite(v) and math.isfinite(w) and math.isfinite(vy)):
+            raise ValueError(f"velocity command ({v}, {w}, {vy}) is not finite")
+        self.cmd, self.cmd_k = ((float(v), float(w)) if vy == 0.0 else (float(v), float(w), float(vy))), self.k
         self.awaiting = False
 
     # --- stepping -----------------------------------------------------------------------------------
@@ -133,20 +137,27 @@ class HostedWorld:
         w = self.world
         if w is None:
             return
-        v_cmd, w_cmd = self.cmd
+        cmd = self.cmd
         if self.cmd_k < 0 or (self.cmd_timeout > 0 and (self.k - 1 - self.cmd_k) * self.cfg.dt > self.cmd_timeout + 1e-9):
-            v_cmd = w_cmd = 0.0
-        self.contact = w.step(v_cmd, w_cmd) <= 0.0
+            cmd = (0.0, 0.0)
+        self.contact = w.step(*cmd) <= 0.0
 
     def scan(self) -> np.ndarray:
-        """Ranges of every beam at the current pose (``inf``: nothing within range). In lockstep
-        the world then waits for a command."""
+        """Ranges of every beam of the (first) laser at the current pose (``inf``: nothing within
+        range). In lockstep the world then waits for a command."""
+        return self.scans()[0]
+
+    def scans(self) -> list[np.ndarray]:
+        """``scan`` for each laser of the robot, in the profile's order (one without a profile)."""
         assert self.world is not None
-        ranges, hits = self.world.scan()
+        out = []
+        for laser in range(len(self.world.lasers)):
+            ranges, hits = self.world.scan(laser)
+            out.append(np.where(hits, ranges, np.inf))
         self.next_scan_k = self.k + self.scan_every
         if self.lockstep:
             self.awaiting = True
-        return np.where(hits, ranges, np.inf)
+        return out
 
     # --- what the world shows ---------------------------------------------------------------------
     @property
@@ -170,7 +181,14 @@ class HostedWorld:
         return (w.v, w.w) if w is not None else (0.0, 0.0)
 
     @property
+    def sideways(self) -> float:
+        """The sideways speed (an omnidirectional base's; 0 for any other)."""
+        return self.world.vy if self.world is not None else 0.0
+
+    @property
     def beam_angles(self) -> np.ndarray:
+        if self.profile is not None:
+            return self.profile.lasers[0].beam_angles()
         half = math.radians(self.cfg.fov_deg) / 2
         return np.linspace(-half, half, self.cfg.beams)
 

@@ -81,7 +81,8 @@ class RobotJudge(_Judge):
     """The paper's monitors (``robot.RobotMonitors``: stall, route completion, loitering, time
     limit; unsafe proximity and waypoint arrivals recorded) on observed poses.
 
-    The body is the pioneer2dx footprint at each pose's heading: pass ``yaw``; without it the
+    The body is the pioneer2dx footprint (a ``robot_profile.ProfiledConfig``'s robot's) at each pose's
+    heading: pass ``yaw``; without it the
     heading of the motion between samples stands in. ``stall`` (optional, per sample): the robot's
     own stall flag (the ND driver gave up), as Player's position2d data carries it; without it a
     robot that gave up and stands still is caught by the loitering monitor instead. The route
@@ -110,7 +111,9 @@ class RobotJudge(_Judge):
         self.origin = (float(origin[0]), float(origin[1]))
         self.diagonal = diagonal
         self.route_length = route_length
+        profile = getattr(self.cfg, "robot_profile", None)  # issue 69: a ProfiledConfig's robot, else the Pioneer
         self.walls = robot.WallGeometry(self.grid, self.resolution, self.cfg.clearance_cells, self.origin,
+                                        **({"footprint": profile.footprint()} if profile is not None else {}),
                                         engine=self.cfg.engine)
         self.monitors: robot.RobotMonitors | None = None
         self.route_m: float | None = None

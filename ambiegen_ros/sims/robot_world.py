@@ -17,6 +17,12 @@ out) is a thin wrapper over it; ``sims.robot.drive`` is the in-process one.
   grid (all rays at once), plus optional Gaussian noise on the returns from the run's seeded
   generator; a beam that hits nothing reads the maximum range, which is no obstacle.
 
+* *Robot profile* (issue 69, ``sims.robot_profile``; None: the Pioneer above, exactly as before):
+  the body is the profile's footprint, the drive its kind (differential: v, w; omnidirectional:
+  v, vy, w; Ackermann: the turn rate never above ``|v| / min_turning_radius``, so a turn command
+  without speed turns nothing), speeds capped at its limits both ways, and each of its lasers cast
+  from its mount pose (``scan(laser)``).
+
 Speed: the laser and the body clearance run as compiled loops (``engine``; the numpy code gives
 the same numbers).
 """
@@ -412,7 +418,12 @@ class RobotWorld:
     """
 
     def __init__(self, grid: np.ndarray, resolution: float, config: Any, pose: tuple[float, float, float],
-                 rng: np.random.Generator | None = None, footprint: np.ndarray = PIONEER2DX, obstacles: Any = None):
+                 rng: np.random.Generator | None = None, footprint: np.ndarray = PIONEER2DX, obstacles: Any = None,
+                 profile: Any = None):
+        self.profile = profile
+        if profile is not None:  # the profile's body, base limits and first laser (``RobotProfile.world_config``)
+            config = profile.world_config(config)
+            footprint = profile.footprint()
         self.cfg = config
         self.grid = np.asarray(grid, dtype=bool)
         self.resolution = resolution
@@ -421,6 +432,12 @@ class RobotWorld:
         self.footprint = np.asarray(footprint, dtype=float)
         half_fov = math.radians(config.fov_deg) / 2
         self.beam_angles = np.linspace(-half_fov, half_fov, config.beams)  # in the robot frame
+        # each laser: mount x, y, yaw in the robot frame, beam angles in its own frame, range, noise
+        self.lasers = [(0.0, 0.0, 0.0, self.beam_angles, config.laser_range, config.laser_noise)]
+        if profile is not None:
+            self.lasers = [(las.x, las.y, las.yaw, las.beam_angles(), las.range, las.noise) for las in profile.lasers]
+            self.beam_angles = self.lasers[0][3]
+        self.vy = 0.0  # sideways speed (an omnidirectional base only)
         self.rng = rng if rng is not None else np.random.default_rng(0)
         self.x, self.y, self.yaw = float(pose[0]), float(pose[1]), float(pose[2])
         self.v = self.w = 0.0
@@ -447,17 +464,26 @@ class RobotWorld:
         """The body's distance to the nearest wall, box or post at the current pose (<= 0: contact)."""
         return self._static_clearance(self.x, self.y, self.yaw)
 
-    def scan(self) -> tuple[np.ndarray, np.ndarray]:
-        """Ranges of the beams at ``yaw + beam_angles`` (noisy where they hit), and which beams hit."""
+    def laser_pose(self, laser: int = 0) -> tuple[float, float, float]:
+        """Where a laser sits in the world (its mount pose on the body at the current pose)."""
+        mx, my, myaw = self.lasers[laser][:3]
+        if mx == 0.0 and my == 0.0:
+            return self.x, self.y, self.yaw + myaw
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        return self.x + c * mx - s * my, self.y + s * mx + c * my, self.yaw + myaw
+
+    def scan(self, laser: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Ranges of a laser's beams from its mount (noisy where they hit), and which beams hit; the
+        beams in the laser's own frame (``lasers[laser][3]``)."""
         cfg = self.cfg
-        ranges = cast_rays(self.grid, self.resolution, self.x, self.y, self.beam_angles + self.yaw, cfg.laser_range,
-                           self.walls.padded, cfg.engine)
+        _, _, _, angles, max_range, noise = self.lasers[laser]
+        x, y, yaw = self.laser_pose(laser)
+        ranges = cast_rays(self.grid, self.resolution, x, y, angles + yaw, max_range, self.walls.padded, cfg.engine)
         if self.obstacles is not None:
-            ranges = np.minimum(ranges, self.obstacles.ray_ranges(self.x, self.y, self.beam_angles + self.yaw,
-                                                                  cfg.laser_range, self.t))
-        hits = ranges < cfg.laser_range
-        if cfg.laser_noise > 0:  # noise on the returns; a beam that hit nothing reads the maximum range
-            noisy = np.clip(ranges + self.rng.normal(0.0, cfg.laser_noise, ranges.shape), 0.0, cfg.laser_range)
+            ranges = np.minimum(ranges, self.obstacles.ray_ranges(x, y, angles + yaw, max_range, self.t))
+        hits = ranges < max_range
+        if noise > 0:  # noise on the returns; a beam that hit nothing reads the maximum range
+            noisy = np.clip(ranges + self.rng.normal(0.0, noise, ranges.shape), 0.0, max_range)
             ranges = np.where(hits, noisy, ranges)
         return ranges, hits
 
@@ -465,19 +491,39 @@ class RobotWorld:
         """The pose after a fraction ``f`` of a step at the current speeds (midpoint heading)."""
         dt = self.cfg.dt
         mid = self.yaw + 0.5 * self.w * f * dt
-        return (self.x + self.v * math.cos(mid) * f * dt, self.y + self.v * math.sin(mid) * f * dt,
-                (self.yaw + self.w * f * dt + math.pi) % (2 * math.pi) - math.pi)
+        yaw = (self.yaw + self.w * f * dt + math.pi) % (2 * math.pi) - math.pi
+        if self.vy != 0.0:  # an omnidirectional base moving sideways too
+            c, s = math.cos(mid), math.sin(mid)
+            return self.x + (self.v * c - self.vy * s) * f * dt, self.y + (self.v * s + self.vy * c) * f * dt, yaw
+        return self.x + self.v * math.cos(mid) * f * dt, self.y + self.v * math.sin(mid) * f * dt, yaw
 
-    def step(self, v_cmd: float, w_cmd: float) -> float:
-        """One ``dt`` under the commands (acceleration limits, unicycle); returns the new clearance.
+    def _accelerate(self, v_cmd: float, w_cmd: float, vy_cmd: float) -> None:
+        """The speeds after one ``dt`` towards the commands, within the base's limits (the profile's,
+        if any: its drive decides what a command can do)."""
+        cfg, p = self.cfg, self.profile
+        if p is None:
+            v_cmd = min(v_cmd, cfg.max_speed)
+        else:
+            v_cmd = _clip(v_cmd, -p.max_speed[0], p.max_speed[0])
+            w_cmd = _clip(w_cmd, -p.max_speed[2], p.max_speed[2])
+            vy_cmd = _clip(vy_cmd, -p.max_speed[1], p.max_speed[1]) if p.drive == "omnidirectional" else 0.0
+        self.v += _clip(v_cmd - self.v, -cfg.max_accel * cfg.dt, cfg.max_accel * cfg.dt)
+        self.w += _clip(w_cmd - self.w, -cfg.max_turn_accel * cfg.dt, cfg.max_turn_accel * cfg.dt)
+        if p is not None and p.drive == "omnidirectional":
+            self.vy += _clip(vy_cmd - self.vy, -p.max_accel[1] * cfg.dt, p.max_accel[1] * cfg.dt)
+        if p is not None and p.drive == "ackermann":  # a car turns only as it rolls: |w| <= |v| / r_min
+            limit = abs(self.v) / p.min_turning_radius
+            self.w = _clip(self.w, -limit, limit)
+
+    def step(self, v_cmd: float, w_cmd: float, vy_cmd: float = 0.0) -> float:
+        """One ``dt`` under the commands (acceleration limits, unicycle; ``vy_cmd``: sideways, an
+        omnidirectional profile only); returns the new clearance.
 
         A step that would touch a wall, box or post ends at the first contact along it (bisection)
         and stops the body there (``v = w = 0``, ``contact``), as Stage's does. Then people: see the
         class docstring."""
         cfg = self.cfg
-        v_cmd = min(v_cmd, cfg.max_speed)
-        self.v += _clip(v_cmd - self.v, -cfg.max_accel * cfg.dt, cfg.max_accel * cfg.dt)
-        self.w += _clip(w_cmd - self.w, -cfg.max_turn_accel * cfg.dt, cfg.max_turn_accel * cfg.dt)
+        self._accelerate(v_cmd, w_cmd, vy_cmd)
         clearance_at = self._static_clearance
         nx, ny, nyaw = self._pose_at(1.0)
         clearance = clearance_at(nx, ny, nyaw)
@@ -491,16 +537,16 @@ class RobotWorld:
                     lo = mid_f
             nx, ny, nyaw = self._pose_at(hi)
             clearance = clearance_at(nx, ny, nyaw)
-            self.v = self.w = 0.0
+            self.v = self.w = self.vy = 0.0
         v_step = self.v
         self.x, self.y, self.yaw = nx, ny, nyaw
         self.t += cfg.dt
         self.contact = clearance <= 0.0
         if self.obstacles is not None and self.obstacles.people:
-            self._meet_people(v_step)
+            self._meet_people(v_step, self.vy)
         return clearance
 
-    def _meet_people(self, v: float) -> None:
+    def _meet_people(self, v: float, vy: float = 0.0) -> None:
         """Contacts with people after a step: the robot's fault (it moved towards the person: the body
         stops, ``person_contact``) or not (counted once per contact)."""
         from .obstacles import contact_point, person_contact_detail, robot_at_fault, speeds_along
@@ -509,7 +555,7 @@ class RobotWorld:
         circles = self.obstacles.circles_at(self.t)[-len(people):]
         touching = set()
         for k, (cx, cy, r) in enumerate(circles):
-            if math.hypot(cx - self.x, cy - self.y) > r + 0.5:  # beyond the body's reach (0.26 m)
+            if math.hypot(cx - self.x, cy - self.y) > r + max(0.5, self.walls.reach + 0.05):  # beyond the body
                 continue
             single = type(self.obstacles)(people=(people[k],))
             if single.body_clearance(self.x, self.y, self.yaw, self.footprint, self.t)[0] > 0.0:
@@ -518,12 +564,13 @@ class RobotWorld:
             if k in self._touching or self.person_contact is not None:
                 continue
             point = contact_point(self.x, self.y, self.yaw, self.footprint, "person", 0, single, self.t)
-            if robot_at_fault((self.x, self.y), self.yaw, v, point, min_speed=self.cfg.contact_fault_speed):
+            heading, speed = (self.yaw, v) if vy == 0.0 else (self.yaw + math.atan2(vy, v), math.hypot(v, vy))
+            if robot_at_fault((self.x, self.y), heading, speed, point, min_speed=self.cfg.contact_fault_speed):
                 person = people[k]  # how they moved in this step: their velocity along the line of contact
                 walked = (person.position(self.t) - person.position(max(self.t - self.cfg.dt, 0.0))) / self.cfg.dt
-                along, person_along = speeds_along((self.x, self.y), self.yaw, v, (cx, cy), walked)
+                along, person_along = speeds_along((self.x, self.y), heading, speed, (cx, cy), walked)
                 self.person_contact = person_contact_detail(k, point, v, along, person_along)
-                self.v = self.w = 0.0
+                self.v = self.w = self.vy = 0.0
             else:
                 self.contacts_not_at_fault += 1
         self._touching = touching

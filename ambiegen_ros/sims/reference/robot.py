@@ -38,6 +38,14 @@ a robot that keeps it passes), so the route's existence is the whole reference. 
 and posts kept clear too), and with walking people ``after`` drives the patient reference
 (``robot_patient``).
 
+*Robot profile* (issue 69): a config with a ``robot_profile`` (a ``sims.robot_profile``
+``RobotProfile``, or a shipped name or path) asks for that robot's circumscribed radius instead
+of the Pioneer's (the TurtleBot 3's 0.105 m passes gaps the Pioneer's 0.26 m does not); an
+Ackermann profile's route must also be drivable by a car (``robot_car``: rounded to its minimum
+turning radius, no turn on the spot at the start), else the scenario is an invalid test with the
+reason; the patient reference drives the profile's body, no faster than its limits, a car along
+the rounded path.
+
 Speed (``bench/robot_route.py``, 20 sampled replication maps + an empty room, 500 x 500 fine
 cells each): median 0.37 s, worst 0.48 s on the shared 2-core machine at load 6 (median 0.83 s
 at load 8); the distance transform, the graph and Dijkstra take about a third each. A simulated
@@ -66,9 +74,21 @@ def footprint_radius(footprint: np.ndarray = PIONEER2DX) -> float:
     return float(np.hypot(pts[:, 0], pts[:, 1]).max())
 
 
+def robot_profile(config: Any) -> Any:
+    """The config's robot profile (a ``robot_profile.ProfiledConfig``'s ``RobotProfile``), or None
+    for the Pioneer."""
+    return getattr(config, "robot_profile", None) or None
+
+
+def body_radius(config: Any) -> float:
+    """The robot's circumscribed radius about its rotation centre: the profile's, else the Pioneer's [m]."""
+    profile = robot_profile(config)
+    return footprint_radius() if profile is None else profile.circumscribed_radius()
+
+
 def required_clearance(config: Any) -> float:
-    """Footprint radius + the config's ``clearance_margin`` [m]."""
-    return footprint_radius() + float(config.clearance_margin)
+    """Footprint radius (``body_radius``) + the config's ``clearance_margin`` [m]."""
+    return body_radius(config) + float(config.clearance_margin)
 
 
 def fine_size(resolution: float, route_resolution: float) -> float:
@@ -249,13 +269,16 @@ def before(problem: Any, scenario: Any, config: Any) -> ReferenceVerdict:
     metrics = {
         "route_length_m": route.length if route.found else None,
         "clearance_m": route.required,
-        "footprint_radius_m": footprint_radius(),
+        "footprint_radius_m": body_radius(config),
         "clearance_margin_m": float(config.clearance_margin),
         "route_min_clearance_m": route.min_clearance,
         "route_resolution_m": route.fine,
         "route_waypoints": int(len(route.waypoints)),
     }
     evidence = {"route": route.waypoints} if route.found else {}
+    car = _car_reason(env, route, config, metrics)
+    if car:
+        return ReferenceVerdict(False, "clearance_route", car, metrics)
     if not getattr(problem, "hazards", False):
         return ReferenceVerdict(route.found, "clearance_route", route.reason, metrics, evidence)
     if not route.found:
@@ -265,7 +288,31 @@ def before(problem: Any, scenario: Any, config: Any) -> ReferenceVerdict:
     if not true.found:
         return ReferenceVerdict(False, "clearance_route", f"in the world, unmapped obstacles included: {true.reason}",
                                 metrics)
+    car = _car_reason(env, true, config, {}, _static_extra(env))
+    if car:
+        return ReferenceVerdict(False, "clearance_route", f"in the world, unmapped obstacles included: {car}", metrics)
     return ReferenceVerdict(True, "clearance_route", "", metrics, evidence)
+
+
+def _static_extra(env: Any) -> Callable | None:
+    """The distance to a hazards world's unmapped boxes and posts (None without any)."""
+    from ..obstacles import Obstacles
+
+    obstacles = Obstacles.from_dict(env.unmapped) if getattr(env, "unmapped", None) else Obstacles()
+    return obstacles.static_distance if len(obstacles.posts) or len(obstacles.boxes) else None
+
+
+def _car_reason(env: Any, route: ClearanceRoute, config: Any, metrics: dict, extra: Callable | None = None) -> str:
+    """Why a car-like profile cannot drive the found route ('' when it can, or for any other robot)."""
+    profile = robot_profile(config)
+    if profile is None or profile.drive != "ackermann" or not route.found:
+        return ""
+    from .robot_car import car_check
+
+    path = car_check(env.grid, env.resolution, route.waypoints, env.start_yaw or 0.0, profile.min_turning_radius,
+                     profile.circumscribed_radius(), extra)
+    metrics["min_turning_radius_m"] = profile.min_turning_radius
+    return "" if path.found else f"no car-like robot drives it: {path.reason}"
 
 
 _TRUE_ROUTES: dict = {}  # the last few true-world routes (``before`` and ``after`` ask for the same)
@@ -308,7 +355,7 @@ def after(problem: Any, scenario: Any, config: Any, outcome: Any, seed: int = 0,
     if not true.found:
         return ReferenceVerdict(False, "patient_robot", f"in the world, unmapped obstacles included: {true.reason}")
     limit = float(budget) if budget else (outcome.metrics or {}).get("time_limit") or config.time_limit(true.length)
-    run = patient_run(true.waypoints, obstacles.people, env.start_yaw or 0.0, env.goal_yaw, config, float(limit))
+    run = _patient(true, obstacles.people, env, config, float(limit))
     metrics = {"patient_time_s": run.time, "patient_waited_s": run.waited,
                "patient_contacts_not_at_fault": run.contacts_not_at_fault, "true_route_length_m": true.length}
     reason = run.reason
@@ -320,5 +367,30 @@ def after(problem: Any, scenario: Any, config: Any, outcome: Any, seed: int = 0,
     return ReferenceVerdict(run.passed, "patient_robot", reason, metrics)
 
 
+def _patient(route: ClearanceRoute, people: tuple, env: Any, config: Any, limit: float) -> Any:
+    """The patient reference on the config's robot: the Pioneer as before, or the profile's body no
+    faster than its limits (a car along its rounded path, which ``before`` found drivable)."""
+    from .robot_patient import patient_run
+
+    profile = robot_profile(config)
+    if profile is None:
+        return patient_run(route.waypoints, people, env.start_yaw or 0.0, env.goal_yaw, config, limit)
+    import dataclasses
+
+    speed = min(float(config.cruise_speed), profile.max_speed[0])
+    turn = min(float(config.nd_turn_rate_deg), math.degrees(profile.max_speed[2]))
+    cfg = dataclasses.replace(config, cruise_speed=speed, nd_turn_rate_deg=turn)
+    plan = None
+    if profile.drive == "ackermann":
+        from .robot_car import car_check, poses_along
+
+        path = car_check(env.grid, env.resolution, route.waypoints, env.start_yaw or 0.0, profile.min_turning_radius,
+                         profile.circumscribed_radius(), _static_extra(env))
+        plan = poses_along(path.points, speed, float(config.dt))
+    return patient_run(route.waypoints, people, env.start_yaw or 0.0, env.goal_yaw, cfg, limit, profile.footprint(),
+                       plan=plan)
+
+
 __all__ = ["ClearanceRoute", "SEGMENT_STEP", "after", "before", "true_route", "clearance_field", "fine_size", "footprint_radius",
-           "plan_clearance_route", "polyline_clearance", "required_clearance", "route_for"]
+           "plan_clearance_route", "polyline_clearance", "required_clearance", "robot_profile", "route_for",
+           "body_radius"]

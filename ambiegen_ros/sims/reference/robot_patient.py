@@ -2,7 +2,7 @@
 
 A failure counts only when a reference passes the same scenario. With walking people the static
 check (a clearance route exists) is not enough: a person may stand on the only corridor for ever.
-So the reference *drives*: the pioneer2dx footprint along the clearance route of the true world
+So the reference *drives*: the pioneer2dx footprint (or a robot profile's, issue 69) along the clearance route of the true world
 (walls and the unmapped obstacles, which it keeps 0.36 m from), turning on the spot at each corner
 and at the goal to the goal's yaw, no faster than the robot under test (``cruise_speed``,
 ``nd_turn_rate_deg``). Before each step it looks ``HORIZON`` seconds ahead along its own plan
@@ -82,11 +82,13 @@ def _people_clearance(poses: np.ndarray, centres: np.ndarray, radii: np.ndarray,
 
 
 def patient_run(route: np.ndarray, people: tuple, start_yaw: float, goal_yaw: float | None, config: Any,
-                time_limit: float, footprint: np.ndarray = PIONEER2DX) -> PatientRun:
-    """Drive the plan, waiting whenever the next ``HORIZON`` seconds of it would meet a person."""
+                time_limit: float, footprint: np.ndarray = PIONEER2DX, plan: np.ndarray | None = None) -> PatientRun:
+    """Drive the plan, waiting whenever the next ``HORIZON`` seconds of it would meet a person.
+    ``plan``: poses every ``dt`` to drive instead of the route's (a car's rounded path, issue 69)."""
     dt = float(config.dt)
-    plan = plan_poses(np.asarray(route, dtype=float), start_yaw, goal_yaw, float(config.cruise_speed),
-                      math.radians(float(config.nd_turn_rate_deg)), dt)
+    if plan is None:
+        plan = plan_poses(np.asarray(route, dtype=float), start_yaw, goal_yaw, float(config.cruise_speed),
+                          math.radians(float(config.nd_turn_rate_deg)), dt)
     ahead = max(1, int(round(HORIZON / dt)))
     radii = np.array([p.radius for p in people], dtype=float)
     far = float(config.cruise_speed) * HORIZON + 1.0 + (float(radii.max()) if len(radii) else 0.0)
