@@ -136,3 +136,22 @@ def test_a_self_intersecting_footprint_in_the_params_is_one_line_naming_the_fiel
     lines = run.stderr.strip().splitlines()
     assert run.returncode == 2 and len(lines) == 1 and "footprint.polygon" in lines[0]
     assert not (tmp_path / "out.yaml").exists()
+
+
+def test_the_nav2_campaign_plan_gives_the_world_and_the_params_the_robot(tmp_path):
+    from ambiegen_ros.launch_logic import plan_nav2_campaign
+
+    plan = plan_nav2_campaign({"output_dir": str(tmp_path), "robot_profile": "turtlebot4", "params_file": str(JAZZY)},
+                              share_dir=str(ROOT))
+    (world,) = [n for n in plan.nodes if n.name == "robot_world"]
+    assert world.parameters["robot_profile"] == "turtlebot4"
+    (written,) = tmp_path.rglob("*.nav2_params.yaml")
+    assert costmap(read(written), "local_costmap")["robot_radius"] == 0.22
+    plain = plan_nav2_campaign({"output_dir": str(tmp_path / "plain"), "params_file": str(JAZZY)}, share_dir=str(ROOT))
+    assert all("robot_profile" not in n.parameters for n in plain.nodes)  # today's plan, unchanged
+    with pytest.raises(ValueError, match="^controller_server.FollowPath.motion_model: "):
+        plan_nav2_campaign({"output_dir": str(tmp_path / "car"), "robot_profile": "ackermann_car",
+                            "params_file": str(JAZZY)}, share_dir=str(ROOT))
+    with pytest.raises(ValueError, match="^robot_profile: omni_base .* not yet judged"):
+        plan_nav2_campaign({"output_dir": str(tmp_path / "omni"), "robot_profile": "omni_base",
+                            "params_file": str(JAZZY)}, share_dir=str(ROOT))

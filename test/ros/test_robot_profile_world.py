@@ -95,3 +95,17 @@ def test_a_car_does_not_turn_on_the_spot(graph):
     command(x=0.5, w=1.0)
     pose = got["odom"][-1].pose.pose
     assert pose.orientation.z > 0.1 and pose.position.x > 15.5  # turning as it rolls
+
+
+def test_a_bad_profile_is_one_line_naming_the_field_and_no_world(tmp_path, ros_domain):
+    import subprocess
+
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: bad\nfootprint: {radius: 0.2}\ndrive: {kind: differential}\nlimits:\n"
+                   "  max_speed: {x: 0.0, theta: 1.0}\n  max_accel: {x: 1.0, theta: 1.0}\n"
+                   "lasers: [{frame: laser, fov_deg: 360, beams: 360, range: 5, rate: 10}]\n")
+    run = subprocess.run([sys.executable, "-m", "sim_nodes.robot_world", "--ros-args", "-p", f"robot_profile:={bad}"],
+                         cwd=REPO, capture_output=True, text=True, timeout=120,
+                         env={**os.environ, "ROS_DOMAIN_ID": str(ros_domain)})
+    lines = (run.stdout + run.stderr).strip().splitlines()
+    assert run.returncode == 2 and len(lines) == 1 and "limits.max_speed.x" in lines[0]
