@@ -331,3 +331,28 @@ def test_the_patient_reference_drives_the_profiles_body_within_its_limits():
     turned = np.abs(np.diff(np.unwrap(car.poses[:, 2])))
     assert (turned[moved < 1e-9] < 1e-9).all()  # no turn without moving
     assert (turned <= moved / load_profile("ackermann_car").min_turning_radius * 1.05 + 1e-9).all()
+
+
+# --- every shipped profile, the same questions -------------------------------------------------------
+@pytest.mark.parametrize("name", SHIPPED)
+def test_each_profile_drives_stops_at_its_front_sees_its_field_and_gets_a_route(name):
+    p = load_profile(name)
+    world = RobotWorld(wall_east(), 0.1, CFG, (4.0, 5.0, 0.0), profile=p)
+    drive(world, 200, 5.0, 0.0)  # asks for more than any base can: the world gives its top speed, then the wall
+    front = float(p.footprint()[:, 0].max())
+    assert world.contact and world.x == pytest.approx(8.0 - front, abs=2e-3) and world.yaw == 0.0
+    world = RobotWorld(open_room(), 0.1, CFG, (2.0, 5.0, 0.0), profile=p)
+    drive(world, 40, 5.0, 0.0)  # 4 s: every base reaches its top speed within 2 s, well short of the far wall
+    assert world.v == pytest.approx(p.max_speed[0]) and not world.contact
+    box = np.ones((40, 40), dtype=bool)
+    box[5:35, 5:35] = False  # a closed 3 m room: every wall within every laser's range
+    world = RobotWorld(box, 0.1, CFG, (2.0, 2.0, 0.0), profile=p)
+    for k, laser in enumerate(p.lasers):
+        ranges, hits = world.scan(k)
+        angles = world.lasers[k][3]
+        assert len(ranges) == laser.beams and hits.all()
+        span = math.degrees(angles[-1] - angles[0]) * (1 if laser.fov_deg < 360 else laser.beams / (laser.beams - 1))
+        assert span == pytest.approx(laser.fov_deg)
+    problem = problem_on(np.zeros((60, 60), dtype=bool), (10, 30), (50, 30), 0.0)
+    verdict = reference.before(problem, None, profiled(RobotSimConfig(), name))
+    assert verdict.passed and verdict.metrics["clearance_m"] == pytest.approx(p.circumscribed_radius() + 0.1)
