@@ -356,3 +356,9 @@ def test_each_profile_drives_stops_at_its_front_sees_its_field_and_gets_a_route(
     problem = problem_on(np.zeros((60, 60), dtype=bool), (10, 30), (50, 30), 0.0)
     verdict = reference.before(problem, None, profiled(RobotSimConfig(), name))
     assert verdict.passed and verdict.metrics["clearance_m"] == pytest.approx(p.circumscribed_radius() + 0.1)
+
+
+def test_a_repeated_waypoint_is_no_leg_for_the_car():
+    route = np.array([[1.0, 1.0], [1.0, 1.0], [4.0, 1.0], [4.0, 1.0], [6.0, 3.0]])
+    path = car_path(route, 0.0, 0.78)
+    assert path.found and path.points[0] == pytest.approx([1.0, 1.0]) and path.points[-1] == pytest.approx([6.0, 3.0])

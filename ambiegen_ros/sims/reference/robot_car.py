@@ -96,6 +96,8 @@ def car_path(route: np.ndarray, start_yaw: float, r: float) -> CarPath:
     """The route rounded for a car of minimum turning radius ``r`` (module docstring), unchecked
     against the walls; empty with the reason when the car cannot drive it so."""
     route = np.asarray(route, dtype=float)
+    if len(route) > 1:  # a repeated point (a start on a fine cell's centre) is no leg
+        route = route[np.concatenate([[True], np.hypot(*np.diff(route, axis=0).T) > 1e-12])]
     if len(route) < 2:
         return CarPath(route.copy(), "")
     arc, tangent, reason = start_turn(route[0], start_yaw, route[1], r)
@@ -104,8 +106,6 @@ def car_path(route: np.ndarray, start_yaw: float, r: float) -> CarPath:
     legs = np.concatenate([tangent[None], route[1:]])
     vec = np.diff(legs, axis=0)
     length = np.hypot(vec[:, 0], vec[:, 1])
-    if (length[1:] <= 0).any():
-        raise ValueError("the route repeats a waypoint")
     u = vec / np.maximum(length, 1e-12)[:, None]
     turn = np.zeros(len(legs))  # the turning angle at each vertex (0 at the ends)
     for k in range(1, len(legs) - 1):
