@@ -149,7 +149,7 @@ def expected_kind(expected: dict, row: dict) -> str:
     return {"PASS": "none"}.get(expected[row["key"]], expected[row["key"]][5:-1])
 
 
-def test_the_recorder_stops_with_one_line_when_its_file_can_take_no_more(tmp_path, ros_domain):
+def test_the_recorder_stops_with_one_line_when_its_file_can_take_no_more(tmp_path, ros_domain, monkeypatch):
     """A file size limit (RLIMIT_FSIZE: writes beyond it fail with EFBIG, as a full disk fails with
     ENOSPC) on the recorder: it says so, exits with status 3, and its log is rebuilt readable."""
     from ambiegen_ros.ros.mcap_log import recover
@@ -164,7 +164,7 @@ def test_the_recorder_stops_with_one_line_when_its_file_can_take_no_more(tmp_pat
                              f"output:={bag}", "-p", "flush_period:=0.2", "-p", "compression:=none"],
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit)))
-    os.environ["ROS_DOMAIN_ID"] = str(ros_domain)
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(ros_domain))  # restored after the test: the next test of this worker has its own
     node = create_node("filler", argv=[])
     try:
         pub = node.create_publisher("std_msgs/msg/String", f"{topics.NAMESPACE}/filler", STREAM)

@@ -157,7 +157,7 @@ def test_a_node_that_refuses_its_params_stops_the_configuration_with_its_own_wor
     assert not results.exists() or TrialLog(results).rows() == []
 
 
-def test_another_sessions_reader_is_waited_out_before_the_stack_starts(tmp_path, suite_file, ros_domain):
+def test_another_sessions_reader_is_waited_out_before_the_stack_starts(tmp_path, suite_file, ros_domain, monkeypatch):
     """An adapter of another session (or what remains of a killed one, until its lease ends) that
     takes scenarios on the domain: the command says so and waits for it to leave before its own
     nodes start, so the scenarios reach our adapter and recorder, not the other one. Every run is
@@ -171,7 +171,7 @@ def test_another_sessions_reader_is_waited_out_before_the_stack_starts(tmp_path,
     other = subprocess.Popen([sys.executable, "-m", "sim_nodes.sut_adapter", "--ros-args", "-p", "problem:=robot",
                               "-p", "worker_id:=other_session"], env=env, cwd=REPO, stdout=subprocess.DEVNULL,
                              stderr=subprocess.DEVNULL)
-    os.environ["ROS_DOMAIN_ID"] = str(ros_domain)
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(ros_domain))  # restored after the test: the next test of this worker has its own
     node = create_node("probe", argv=[])
     try:
         pub = node.create_publisher(topics.SCENARIO_TYPES["robot"], topics.scenarios("robot"), STREAM)
