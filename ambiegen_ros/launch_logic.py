@@ -139,6 +139,8 @@ def plan_campaign(values: dict[str, str], share_dir: str, seed: int | None = Non
         "config_file": config,
         "profile": value["profile"],
         "min_subscribers": workers + 1,
+        # no scenario before the plan's recorder reads every topic it records (as ``ambiegen campaign``)
+        "min_recorders": sum(n.executable == "recorder" for n in nodes),
     }))
     return CampaignPlan(run_id, problem, value["algorithm"], seed, value["mode"], workers, mcap,
                         launch_flag("keep_workers", value["keep_workers"]), nodes)
@@ -165,9 +167,9 @@ NAV2_LAUNCH_ARGUMENTS: dict[str, tuple[str, str]] = {
                                 "faster than this ('' = the world's default, 0.01)"),
     "stacks": ("1", "K stacks of world + Nav2 + adapter fed by one generator, stack i in namespace /stack<i> "
                     "(K > 1: nav2:=ours)"),
-    "robot_profile": ("", "the robot in the world: a shipped profile (turtlebot4, turtlebot3_burger, ...) or a profile "
-                          "file (docs/robot_profiles.md); its body, laser and limits go into the params too ('' = "
-                          "Stage's pioneer2dx)"),
+    "robot_profile": ("", "the robot the world drives and the adapter judges: a shipped profile (turtlebot4, "
+                          "turtlebot3_burger, ...) or a profile file (docs/robot_profiles.md); its body, laser and "
+                          "limits go into the params too ('' = Stage's pioneer2dx)"),
     "part": ("all", "what this host runs, for a campaign across hosts: all | generator (the recorder and the "
                     "generator, for `stacks` stacks elsewhere) | stack<i> (stack i alone, in /stack<i>, serving "
                     "campaigns until Ctrl-C)"),
@@ -297,23 +299,18 @@ def nav2_result_timeout(cfg: Any, speed: float | None, time_scale: float, start_
     return 2.0 * cfg.time_limit(10 * 50.0, speed) / time_scale + start_timeout + 60.0
 
 
-def campaign_robot(robot: str, params: dict) -> dict:
-    """The params with a robot profile's body and limits (``nav2_params.with_robot``), once it is
-    known that the params' controller can drive it and that the judge is not fooled by it: the
-    adapter's references still take the Pioneer's 0.26 m radius and no turning radius, which is
-    on the safe side (more invalid tests, never a false failure) only for a robot within the
-    Pioneer's radius that turns in place. ``ValueError`` naming the field otherwise."""
+def campaign_robot(robot: str, params: dict) -> tuple[str, dict]:
+    """The robot as the world and the adapter take it, and the params with its body and limits
+    (``nav2_params.with_robot``), once it is known that the params' controller can drive it
+    (``ValueError`` naming the field otherwise). A shipped name stays a name; a file becomes an
+    absolute path, so every node reads the file checked here, whatever its working directory."""
     from .nav2_params import with_robot
-    from .sims.robot_profile import check_controller, load_profile
-    from .sims.reference.robot import footprint_radius
+    from .sims.robot_profile import check_controller, load_profile, profile_path
 
     profile = load_profile(robot)
     check_controller(profile, params)
-    if profile.drive == "ackermann" or profile.circumscribed_radius() > footprint_radius() + 1e-9:
-        raise ValueError(f"robot_profile: {profile.name} ({profile.drive}, radius {profile.circumscribed_radius():.2f} "
-                         f"m) is not yet judged by the campaign's references, which assume the Pioneer's "
-                         f"{footprint_radius():.2f} m turning in place (docs/robot_profiles.md)")
-    return with_robot(params, profile)
+    path = profile_path(robot)
+    return (str(path.absolute()) if path == Path(robot) else robot), with_robot(params, profile)
 
 
 def plan_nav2_campaign(values: dict[str, str], share_dir: str, seed: int | None = None) -> CampaignPlan:
@@ -337,8 +334,8 @@ def plan_nav2_campaign(values: dict[str, str], share_dir: str, seed: int | None 
     overlay = nav2_overlay(value["params_overlay"], value["params_file"], share_dir)
     params = merged_params(source, overlay, k)
     robot = value.get("robot_profile", "")
-    if robot:  # issue 69: the world's robot, and the same body and limits in Nav2's params
-        params = campaign_robot(robot, params)
+    if robot:  # issue 69: the robot of the world and the adapter's judge, and its body and limits in Nav2's params
+        robot, params = campaign_robot(robot, params)
     scaled = base.mcap.with_name(base.mcap.stem + ".nav2_params.yaml")
     write_params(params, scaled, f"{source}" + (f" + {overlay}" if overlay else "")
                  + f", Nav2's loop rates x {k:g} (time_scale)", overwrite=True)  # named after the run: ours
@@ -365,14 +362,15 @@ def plan_nav2_campaign(values: dict[str, str], share_dir: str, seed: int | None 
     for ns in here:
         stack = nav2_stack(ns, mode, params, scaled, base.seed, base.run_id[-6:], k, upsample, start_timeout, early,
                            speed, generator.parameters["config_file"], value["profile"])
-        if robot:
-            stack[0].parameters["robot_profile"] = robot  # the world
-        nodes += stack
-        nodes[-1].parameters["known_failures"] = known
+        world, adapter = stack[0], stack[-1]
+        if robot:  # the world drives it, the adapter judges it
+            world.parameters["robot_profile"] = adapter.parameters["robot_profile"] = robot
+        adapter.parameters["known_failures"] = known
         if value["contact_fault_speed"]:
             charge = _number("contact_fault_speed", value["contact_fault_speed"], float, 0.0)
-            nodes[0].parameters["sim.contact_fault_speed"] = charge  # the world decides who ran into whom
-            nodes[-1].parameters["oracle.contact_fault_speed"] = charge  # ... and the reference, alike
+            world.parameters["sim.contact_fault_speed"] = charge  # the world decides who ran into whom
+            adapter.parameters["oracle.contact_fault_speed"] = charge  # ... and the reference, alike
+        nodes += stack
     base.nodes = nodes + ([] if part.startswith("stack") else [generator])
     base.workers = stacks if part == "all" else len(here)
     if part.startswith("stack"):

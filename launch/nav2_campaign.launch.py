@@ -31,7 +31,8 @@ campaigns until Ctrl-C).
 
 Arguments: those of campaign.launch.py except problem/workers/keep_workers, plus nav2,
 params_file, params_overlay, time_scale, map_upsample (1 m map cells to Nav2 as k x k cells),
-early_verdicts, result_timeout, known_failures, stacks and part. The plan lives in ambiegen_ros/launch_logic.py
+early_verdicts, result_timeout, known_failures, stacks, part and robot_profile (the robot the world
+drives and each adapter judges: docs/robot_profiles.md). The plan lives in ambiegen_ros/launch_logic.py
 (plan_nav2_campaign). See docs/external_sut.md for the two-command recipe and the measured
 time-scale limits.
 """

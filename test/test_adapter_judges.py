@@ -7,12 +7,15 @@ rules say; the rules that read Nav2's answer (``nav2_rules``) must turn an abort
 error record, blame a give-up at the stack's own time per goal only when the reference makes it
 in that time, and mark a PASS after recoveries as a near miss; the parameter tables must refuse a
 bad value with one line naming the parameter; and a scenario the adapter fails to set up must
-still end in an error record, with the traceback logged when the fault is the adapter's.
+still end in an error record, with the traceback logged when the fault is the adapter's. The
+robot judged is ``robot_profile``'s (issue 69): its radius and a car's turning radius decide what
+is an invalid test, '' is the Pioneer, and a bad profile stops the node (a real process) in one line.
 """
 from __future__ import annotations
 
 import math
 import sys
+from collections import deque
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -104,11 +107,11 @@ def settings(judge, **values):
     return params.declare(lambda name, default, help: values.get(name, default), COMMON + judge.PARAMS)
 
 
-def make_judge(judge, problem, **values):
+def make_judge(judge, problem, oracle=None, **values):
     node = StandInNode()
     values = {"problem": problem.name, "goal_mode": judge.goal_mode or "topic", **values}
     s = settings(judge, **values)
-    made = judge(node, s, sim_config(problem.name), problem)
+    made = judge(node, s, oracle or sim_config(problem.name), problem)
     host = SimpleNamespace(job=None, on_sample=lambda msg: None, sample_qos=None, on_nav2_left_active=None)
     if judge is Nav2Robot:  # the topics, and a stand-in for Nav2's client
         TopicRobot.wire(made, host)
@@ -363,6 +366,96 @@ def test_the_tables_keep_the_defaults_and_choose_the_judge():
     text = help_doc()
     assert all(f"  {name} (" in text for name in names)  # every parameter in --help, with its help
     assert "ours_error_codes (str, default '')" in text and "comma separated" in text
+
+
+# --- the robot judged: the one robot_profile names (issue 69) -----------------------------------------
+def adapter_oracle(judge=TopicRobot, **values):
+    """The oracle config ``SutAdapter`` builds from its parameters, ``values`` standing in for ``-p``."""
+    s = settings(judge, goal_mode=judge.goal_mode, **values)
+    stand_in = SimpleNamespace(problem_name="robot", run_invalid=False, reference=True, settings=s,
+                               node=SimpleNamespace(declare_parameter=lambda name, default, help: default))
+    return SutAdapter._oracle(stand_in, judge.ORACLE_FIELDS)
+
+
+def accepted(oracle, grid: np.ndarray, start: tuple, goal: tuple, start_yaw: float):
+    """``SutAdapter.accept`` of a scenario on ``grid`` (0.1 m cells): what it answered at once
+    (INVALID_TEST, never sent) and what it queued to run."""
+    env = SimpleNamespace(grid=grid, resolution=0.1, start=start, goal=goal, start_yaw=start_yaw, goal_yaw=None,
+                          unmapped=None)
+    problem = SimpleNamespace(name="robot", environment=lambda scenario: env, hazards=False)
+    answered, queue = [], deque()
+    stand_in = SimpleNamespace(job=None, queue=queue, validity=lambda scenario: (True, ""), run_invalid=False,
+                               reference=True, problem=problem, oracle=oracle, idle=lambda: None,
+                               publish=lambda run_id, sid, outcome: answered.append(outcome),
+                               node=SimpleNamespace(logger=SimpleNamespace(info=lambda text: None)))
+    SutAdapter.accept(stand_in, "r", 1, None, None)
+    return answered, list(queue)
+
+
+def gap_of(cells: int) -> np.ndarray:
+    """4 x 4 m of 0.1 m cells, a wall across the middle with a gap ``cells`` wide."""
+    g = np.zeros((40, 40), dtype=bool)
+    g[19:21, :] = True
+    g[19:21, 17:17 + cells] = False
+    return g
+
+
+def test_with_the_turtlebot4_profile_the_adapter_judges_its_body_and_sends_what_only_it_passes(robot):
+    from ambiegen_ros.sims.reference.robot import body_radius
+    from ambiegen_ros.sims.robot_profile import load_profile
+
+    tb4 = adapter_oracle(Nav2Robot, robot_profile="turtlebot4")
+    assert body_radius(tb4) == 0.22 and tb4.robot_profile.name == "turtlebot4"
+    judge, node, _ = make_judge(TopicRobot, robot[0], oracle=tb4)  # the judge of a run measures the TB4's body
+    assert robot_job(judge, node, robot[1]).judge.walls.footprint == pytest.approx(load_profile("turtlebot4").footprint())
+    # a 0.7 m gap: the TB4 keeps 0.22 + 0.1 m from each side, the Pioneer would need 0.26 + 0.1 m
+    answered, queued = accepted(tb4, gap_of(7), (20, 5), (20, 35), math.pi / 2)
+    assert answered == [] and len(queued) == 1 and queued[0].before.passed
+    (pioneer,), queued = accepted(adapter_oracle(), gap_of(7), (20, 5), (20, 35), math.pi / 2)
+    assert pioneer.failure_kind == "invalid_test" and "0.36" in pioneer.detail and not queued
+
+
+def test_with_the_ackermann_car_a_turn_tighter_than_its_radius_is_an_invalid_test_with_the_reason():
+    hairpin = np.ones((60, 19), dtype=bool)  # a 1.5 m corridor, the goal behind the start: a U-turn 1.56 m across
+    hairpin[2:58, 2:17] = False
+    (car,), queued = accepted(adapter_oracle(Nav2Robot, robot_profile="ackermann_car"), hairpin, (9, 40), (9, 10),
+                              math.pi / 2)
+    assert car.failure_kind == "invalid_test" and not car.failed and not queued
+    assert car.detail.startswith("no car-like robot drives it") and "turn" in car.detail, car.detail
+    assert car.metrics["reference_min_turning_radius_m"] == pytest.approx(0.779, abs=1e-3)
+    answered, queued = accepted(adapter_oracle(robot_profile="turtlebot4"), hairpin, (9, 40), (9, 10), math.pi / 2)
+    assert answered == [] and len(queued) == 1  # a robot that turns in place drives it: the car's radius refused it
+
+
+def test_no_profile_keeps_the_pioneer_and_a_bad_one_is_one_line_naming_the_field(tmp_path):
+    from ambiegen_ros.sims.reference.robot import body_radius, footprint_radius
+
+    plain = adapter_oracle()
+    assert plain == sim_config("robot", {"run_invalid": False, "reference": True})  # today's config, unchanged
+    assert getattr(plain, "robot_profile", None) is None and body_radius(plain) == footprint_radius()
+    assert settings(Nav2Robot, goal_mode="action").robot_profile == ""
+    bad = tmp_path / "slow.yaml"
+    bad.write_text((REPO / "config" / "robots" / "turtlebot4.yaml").read_text().replace("x: 0.5", "x: 0.0", 1))
+    with pytest.raises(ConfigError) as error:
+        adapter_oracle(robot_profile=str(bad))
+    assert str(error.value) == f"robot_profile {bad}: limits.max_speed.x: must be > 0, got 0.0"
+    with pytest.raises(ConfigError, match="^robot_profile roomba: robot_profile: no shipped profile 'roomba'"):
+        adapter_oracle(robot_profile="roomba")
+
+
+
+def test_the_adapter_node_refuses_a_bad_profile_in_one_line_and_exits(tmp_path, ros_domain):
+    import os
+    import subprocess
+
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: bad\nfootprint: {radius: 0.2, polygon: [[0, 0], [1, 0], [0, 1]]}\n")
+    run = subprocess.run([sys.executable, "-m", "sim_nodes.sut_adapter", "--ros-args", "-p", "problem:=robot",
+                          "-p", f"robot_profile:={bad}"], cwd=REPO, capture_output=True, text=True, timeout=120,
+                         env={**os.environ, "ROS_DOMAIN_ID": str(ros_domain)})
+    lines = (run.stdout + run.stderr).strip().splitlines()
+    assert run.returncode == 2 and len(lines) == 1, lines
+    assert lines[0].endswith(f"robot_profile {bad}: footprint: give either radius or polygon")
 
 
 # --- setup that fails -------------------------------------------------------------------------------

@@ -144,7 +144,7 @@ def test_the_nav2_campaign_plan_gives_the_world_and_the_params_the_robot(tmp_pat
     plan = plan_nav2_campaign({"output_dir": str(tmp_path), "robot_profile": "turtlebot4", "params_file": str(JAZZY)},
                               share_dir=str(ROOT))
     (world,) = [n for n in plan.nodes if n.name == "robot_world"]
-    assert world.parameters["robot_profile"] == "turtlebot4"
+    assert world.parameters["robot_profile"] == plan.node("sut_adapter").parameters["robot_profile"] == "turtlebot4"
     (written,) = tmp_path.rglob("*.nav2_params.yaml")
     assert costmap(read(written), "local_costmap")["robot_radius"] == 0.22
     plain = plan_nav2_campaign({"output_dir": str(tmp_path / "plain"), "params_file": str(JAZZY)}, share_dir=str(ROOT))
@@ -152,6 +152,6 @@ def test_the_nav2_campaign_plan_gives_the_world_and_the_params_the_robot(tmp_pat
     with pytest.raises(ValueError, match="^controller_server.FollowPath.motion_model: "):
         plan_nav2_campaign({"output_dir": str(tmp_path / "car"), "robot_profile": "ackermann_car",
                             "params_file": str(JAZZY)}, share_dir=str(ROOT))
-    with pytest.raises(ValueError, match="^robot_profile: omni_base .* not yet judged"):
-        plan_nav2_campaign({"output_dir": str(tmp_path / "omni"), "robot_profile": "omni_base",
-                            "params_file": str(JAZZY)}, share_dir=str(ROOT))
+    omni = plan_nav2_campaign({"output_dir": str(tmp_path / "omni"), "robot_profile": "omni_base",
+                               "params_file": str(JAZZY)}, share_dir=str(ROOT))
+    assert omni.node("sut_adapter").parameters["robot_profile"] == "omni_base"  # judged as itself, not refused

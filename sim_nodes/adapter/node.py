@@ -97,6 +97,21 @@ def help_doc() -> str:
     return params.help_text(sections) + f"\n\noracle.<field>: the oracle's thresholds (defaults: the full model's); {fields}"
 
 
+def oracle_config(problem: str, options: dict[str, Any], robot: str = "") -> Any:
+    """The full model's config with ``options``, carrying the robot ``robot`` names (a robot
+    profile, issue 69) so the references and the judge take its body: '' = the Pioneer, the config
+    unchanged. A bad profile: one ``ConfigError`` line naming the field, as robot_world says it."""
+    config = sim_config(problem, options)
+    if not robot:
+        return config
+    from ambiegen_ros.sims.robot_profile import ProfileError, profiled
+
+    try:
+        return profiled(config, robot)
+    except ProfileError as exc:
+        raise ConfigError(f"robot_profile {robot}: {exc}") from None
+
+
 class SutAdapter:
     def __init__(self, argv: list[str] | None = None, node=None):
         self.node, default_id = (node, None) if node is not None else worker_node("sut_adapter", argv)
@@ -164,7 +179,7 @@ class SutAdapter:
                                    if values[f"oracle.{name}"] != getattr(defaults, name)}
         options["run_invalid"] = bool(self.run_invalid)
         options["reference"] = self.reference
-        return sim_config(self.problem_name, options)
+        return oracle_config(self.problem_name, options, self.settings.get("robot_profile", ""))
 
     # --- worker side ----------------------------------------------------------------------------
     def accept(self, run_id: str, sid: int, scenario: Any, msg: Any) -> None:

@@ -21,6 +21,9 @@
   counted, not a failure (``contacts_not_at_fault``).
 * **The time limit** is max(``oracle.timeout``, 2 x the clearance route / ``time_limit_speed`` +
   60 s). ``early_verdicts`` (default true here) lets the paper's stall and loitering monitors decide.
+* **The robot** is ``robot_profile``'s (the same name or path robot_world takes): the references
+  keep its radius from the walls, a car's route must suit its turning radius, the judge measures its
+  body ('' = the Pioneer). A bad profile stops the node with one line naming the field.
 * **Plans.** With ``plan_topic`` (``nav_msgs/Path``, the stack's global plan) the plans published
   after the goal are counted (``metrics["plans"]``, the last one's ``plan_length_m``), and a failure
   without any says so (``with_plans``). A stall the stack itself reported says so (``with_give_up``).
@@ -69,6 +72,9 @@ ROBOT_PARAMS = (
                                   "= it gave up, message = why ('' = none)"),
     Param("plan_topic", str, "", "optional nav_msgs/Path: the stack's global plan, counted after the goal "
                                  "(Nav2: /plan; '' = none)"),
+    Param("robot_profile", str, "", "robot: the robot judged, a shipped profile's name (turtlebot4, ...) or a profile "
+                                    "file (docs/robot_profiles.md), as robot_world's: the references' clearance, a "
+                                    "car's turning radius and the judge's body are its ('' = Stage's pioneer2dx)"),
     Param("obstacles_topic", str, topics.WORLD_OBSTACLES, "std_msgs/String out (JSON), stamped like the map: what "
                                                           "the world holds besides the map, for robot_world (hazards "
                                                           "scenarios; '' = none)"),

@@ -321,6 +321,65 @@ def test_nav2_launch_file_takes_its_logic_from_the_plan():
         assert needed in launch_logic.NAV2_LAUNCH_ARGUMENTS
 
 
+def test_every_planned_generator_waits_for_the_recorder_of_its_plan(tmp_path):
+    """No scenario before the recorder reads every topic it records (``min_recorders``, as ``ambiegen
+    campaign``): the generator of each plan with a recorder waits for it; a stack's part has neither."""
+    assert plan(tmp_path).node("generator").parameters["min_recorders"] == 1
+    for args in ({}, {"stacks": "2"}, {"stacks": "2", "part": "generator"}):
+        p = launch_logic.plan_nav2_campaign({"output_dir": str(tmp_path), **args}, share_dir=str(REPO))
+        assert [n.executable for n in p.nodes].count("recorder") == 1, args
+        assert p.node("generator").parameters["min_recorders"] == 1, args
+    stack = launch_logic.plan_nav2_campaign({"output_dir": str(tmp_path), "stacks": "2", "part": "stack0"},
+                                            share_dir=str(REPO))
+    assert not any(n.executable in ("generator", "recorder") for n in stack.nodes)
+
+
+@pytest.mark.parametrize("args", [{}, {"stacks": "2"}, {"stacks": "2", "part": "stack1"}])
+def test_contact_fault_speed_goes_to_each_world_and_its_adapter_never_to_the_recorder(tmp_path, args):
+    p = launch_logic.plan_nav2_campaign({"output_dir": str(tmp_path), "contact_fault_speed": "0.05", **args},
+                                        share_dir=str(REPO))
+    worlds = [n for n in p.nodes if n.executable == "robot_world"]
+    adapters = [n for n in p.nodes if n.executable == "sut_adapter"]
+    assert len(worlds) == len(adapters) == (1 if args.get("part") else int(args.get("stacks", "1")))
+    assert all(w.parameters["sim.contact_fault_speed"] == 0.05 for w in worlds)
+    assert all(a.parameters["oracle.contact_fault_speed"] == 0.05 for a in adapters)
+    charged = {n.name for n in p.nodes if any("contact_fault_speed" in k for k in n.parameters)}
+    assert charged == {n.name for n in worlds + adapters}  # the recorder, Nav2 and the generator get nothing
+
+
+MPPI_ACKERMANN = ("controller_server:\n  ros__parameters:\n    controller_plugins: [FollowPath]\n    FollowPath:\n"
+                  "      plugin: nav2_mppi_controller::MPPIController\n      motion_model: Ackermann\n")
+
+
+def test_the_adapter_judges_the_robot_the_world_drives(tmp_path, monkeypatch):
+    """robot_profile reaches each stack's world and adapter alike: a robot bigger than the Pioneer
+    or a car is judged as itself (its radius, its turning radius), so the plan takes it."""
+    for robot, args in (("omni_base", {}), ("turtlebot4", {"stacks": "2"})):
+        p = launch_logic.plan_nav2_campaign({"output_dir": str(tmp_path), "robot_profile": robot, **args},
+                                            share_dir=str(REPO))
+        handed = {(n.namespace, n.name): n.parameters.get("robot_profile") for n in p.nodes
+                  if n.executable in ("robot_world", "sut_adapter")}
+        assert len(handed) == 2 * int(args.get("stacks", "1")) and set(handed.values()) == {robot}
+    params = tmp_path / "mppi.yaml"
+    params.write_text(MPPI_ACKERMANN)
+    car = launch_logic.plan_nav2_campaign({"output_dir": str(tmp_path), "robot_profile": "ackermann_car",
+                                           "params_file": str(params)}, share_dir=str(REPO))
+    assert car.node("sut_adapter").parameters["robot_profile"] == "ackermann_car"
+    # a file is handed on as an absolute path: each node reads the file the plan checked, wherever it runs
+    (tmp_path / "robots").mkdir()
+    (tmp_path / "robots" / "mine.yaml").write_text((REPO / "config" / "robots" / "turtlebot4.yaml").read_text())
+    monkeypatch.chdir(tmp_path)
+    mine = launch_logic.plan_nav2_campaign({"output_dir": str(tmp_path), "robot_profile": "robots/mine.yaml"},
+                                           share_dir=str(REPO))
+    expected = str(tmp_path / "robots" / "mine.yaml")
+    assert mine.node("robot_world").parameters["robot_profile"] == expected
+    assert mine.node("sut_adapter").parameters["robot_profile"] == expected
+    plain = launch_logic.plan_nav2_campaign({"output_dir": str(tmp_path)}, share_dir=str(REPO))
+    assert all("robot_profile" not in n.parameters for n in plain.nodes)  # '' = today's plan, unchanged
+    with pytest.raises(ValueError, match="^robot_profile: no shipped profile 'roomba'"):
+        launch_logic.plan_nav2_campaign({"output_dir": str(tmp_path), "robot_profile": "roomba"}, share_dir=str(REPO))
+
+
 # --- the plan's node set, run as real processes ---------------------------------------------------------
 def test_plan_node_set_runs_a_campaign_and_keep_workers_leaves_them_running(nodes_factory, tmp_path, ros_domain):
     """The launch file's sequence with ``keep_workers:=true``: generator exits -> SIGINT to the
