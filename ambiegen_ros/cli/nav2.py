@@ -58,8 +58,8 @@ def cmd_nav2_params(args: argparse.Namespace) -> int:
           + (f"{speed:g} m/s (the time limit divides routes by it)" if speed else "not found (the time limit uses 0.3 m/s)"))
     if profile is not None:
         body = f"robot_radius {profile.radius:g} m" if profile.round else f"footprint {profile.nav2_footprint()}"
-        print(f"robot: {profile.name} ({profile.drive}; {body}; laser {profile.lasers[0].frame}); start robot_world "
-              f"with robot_profile:={args.robot}")
+        print(f"robot: {profile.name} ({profile.drive}; {body}; laser {profile.lasers[0].frame}); give robot_world and "
+              f"sut_adapter robot_profile:={args.robot} (the Nav2 campaign launch: robot_profile:={args.robot})")
     for note in notes:
         print(f"note: {note}")
     print(f"start Nav2: ros2 launch nav2_bringup navigation_launch.py use_sim_time:=true params_file:={out}")
