@@ -11,6 +11,11 @@ with (``Reruns.after``):
 * an error during which a part of ours died runs again, first, with the same ``extra``, once the
   part is back; it is no error in a row when every restart of ours came back (a dead part is not
   the kind of error that repeats);
+* a starved run (an error record whose ``metrics.error_kind`` is ``starved``: the stack did not get
+  its computer, ``ambiegen_ros.sims.timing``) runs again, first, with the same ``extra``: it is no
+  verdict, whatever Nav2 answered. It counts in the streak all the same: a machine that starves the
+  stack run after run does not hold it, and ``max_errors`` starved runs in a row stop the
+  configuration saying so (rather than rerunning for ever on a machine that cannot run it);
 * any other error counts in the streak, and ``max_errors`` in a row stop the configuration with
   one line naming the last error and the logs.
 """
@@ -20,6 +25,13 @@ from dataclasses import dataclass
 from typing import Any, Sequence
 
 from .rows import counted
+
+STARVED = "starved"  # an error record's kind (``metrics.error_kind``): the stack did not get its computer
+
+
+def starved(row: dict) -> bool:
+    """Is this row a starved run (an error record of the kind ``starved``)?"""
+    return row.get("failure_kind") == "error" and (row.get("metrics") or {}).get("error_kind") == STARVED
 
 
 @dataclass(frozen=True)
@@ -49,20 +61,25 @@ class Reruns:
         rerun = "crash_rerun_of" in extra
         if counted(row):
             step = Step(count=True, tell=not rerun, errors=0)
-        else:  # an error a restart of ours explains is not the kind that repeats
-            step = Step(count=False, tell=False, errors=errors if ours and all(r["ok"] for r in restarts)
-                        else errors + 1)
+        else:  # an error a restart of ours explains is not the kind that repeats (a starvation may)
+            explained = ours and all(r["ok"] for r in restarts) and not starved(row)
+            step = Step(count=False, tell=False, errors=errors if explained else errors + 1)
         again = None
         if row.get("failure_kind") == "sut_crashed" and not rerun:  # once more on the fresh stack
             again = {"crash_rerun_of": {"run_id": row.get("run_id"), "scenario_id": row.get("scenario_id"),
                                         "detail": row.get("detail")}}
-        elif not step.count and ours:  # ours died: the same run again, on the part restarted
+        elif not step.count and (ours or starved(row)):  # the same run again (on the part restarted)
             again = dict(extra)
         stop = None
-        if step.errors >= self.max_errors:
+        if step.errors >= self.max_errors and starved(row):
+            why = str((row.get("metrics") or {}).get("starved") or "")[:200]
+            stop = (f"[{self.label}] {step.errors} errors in a row, the last a starved run: this machine does not give "
+                    f"the stack its computer ({why}; timing.* in the rows, logs: {self.logs}); run fewer stacks on "
+                    "it, then rerun the same command to resume")
+        elif step.errors >= self.max_errors:
             stop = (f"[{self.label}] {step.errors} errors in a row, the last: {str(row.get('detail') or '')[:200]} "
                     f"(logs: {self.logs}); rerun the same command to resume")
         return Step(step.count, step.tell, step.errors, again, stop)
 
 
-__all__ = ["Reruns", "Step"]
+__all__ = ["Reruns", "STARVED", "Step", "starved"]

@@ -3,11 +3,13 @@ what a configuration fixes, keeps, breaks and costs against a baseline.
 
 A scenario's runs on one configuration are ``k of N``: N runs of the stack (errors of ours left
 out, ``rows.counted``), k of them failures (known failures included: Nav2 failed all the same),
-by kind. Its status: **fails** when k >= N / 2, **passes** when k = 0, **flaky** in between. Against
-the baseline (the first configuration) a configuration **fixes** a scenario the baseline fails and
-it passes, **improves** one it only makes flaky, **keeps** one both fail, and **breaks** one the
-baseline passes and it fails at least once. Fisher's exact test (two-sided) compares the failure
-counts of the two, per scenario and pooled. The cost of a configuration is measured on the
+by kind (a starved run, the stack without its computer, ``reruns.starved``: in a column of its own,
+apart from the other errors, never a failure nor a run of the stack). Its status: **fails** when
+k >= N / 2, **passes** when k = 0, **flaky** in between. Against the baseline (the first
+configuration) a configuration **fixes** a scenario the baseline fails and it passes, **improves**
+one it only makes flaky, **keeps** one both fail, and **breaks** one the baseline passes and it
+fails at least once. Fisher's exact test (two-sided) compares the failure counts of the two, per
+scenario and pooled. The cost of a configuration is measured on the
 scenarios the baseline passes every time: time to the goal (simulated seconds) and Nav2's
 recoveries on its passes, median and 90th percentile, and the median of its time over the
 baseline's per scenario.
@@ -20,6 +22,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from ..sims.obstacles import contact_speeds
+from .reruns import starved
 from .rows import counted
 
 DEFAULT_CHARGE_SPEEDS = (0.05, 0.1, 0.2)  # m/s: what-ifs of the contact table
@@ -35,8 +38,10 @@ def fisher_p(k_a: int, n_a: int, k_b: int, n_b: int) -> float:
 
 
 def kind_of(row: dict) -> str:
-    """What a run says, in one word: pass, near_miss, invalid_test, or the failure's kind (``known:``
-    in front of a known one)."""
+    """What a run says, in one word: pass, near_miss, invalid_test, starved, or the failure's kind
+    (``known:`` in front of a known one)."""
+    if starved(row):
+        return "starved"
     kind = row.get("failure_kind", "error")
     if kind == "none":
         return "near_miss" if int(row.get("recoveries") or 0) > 0 else "pass"
@@ -50,7 +55,8 @@ class Cell:
 
     def __init__(self, rows: Iterable[dict]):
         self.rows = [r for r in rows if counted(r)]
-        self.errors = 0
+        self.errors = 0  # errors of ours, starved runs apart
+        self.starved = 0
         self.kinds = Counter(kind_of(r) for r in self.rows)
 
     @property
@@ -87,7 +93,8 @@ def cells(rows: list[dict], labels: list[str], keys: list[str]) -> dict[tuple[st
     for label in labels:
         for key in keys:
             cell = Cell(by.get((label, key), []))
-            cell.errors = sum(not counted(r) for r in by.get((label, key), []))
+            cell.errors = sum(not counted(r) and not starved(r) for r in by.get((label, key), []))
+            cell.starved = sum(starved(r) for r in by.get((label, key), []))
             out[(label, key)] = cell
     return out
 
@@ -103,7 +110,7 @@ def _stat(values: list[float], q: float) -> str:
 
 # --- one configuration: does it reproduce? ---------------------------------------------------------
 def rerun_table(rows: list[dict], label: str, names: dict[str, str]) -> tuple[list[str], dict]:
-    """Per scenario: runs, passes (near misses), failures by kind (k of N), invalid tests, errors."""
+    """Per scenario: runs, passes (near misses), failures by kind (k of N), invalid tests, errors, starved runs."""
     keys = list(names)
     table = cells(rows, [label], keys)
     lines, out = [], {}
@@ -112,15 +119,18 @@ def rerun_table(rows: list[dict], label: str, names: dict[str, str]) -> tuple[li
         near = c.kinds.get("near_miss", 0)
         passed = c.kinds.get("pass", 0) + near
         lines.append([names[key], c.n, f"{passed}" + (f" ({near})" if near else ""), c.failures(),
-                      c.kinds.get("invalid_test", 0), c.errors, c.status])
+                      c.kinds.get("invalid_test", 0), c.errors, c.starved, c.status])
         out[names[key]] = {"key": key, "runs": c.n, "failures": c.k, "kinds": dict(c.kinds), "errors": c.errors,
-                           "status": c.status}
+                           "starved": c.starved, "status": c.status}
     total_k = sum(table[(label, k)].k for k in keys)
     total_n = sum(table[(label, k)].n for k in keys)
-    md = [f"Configuration `{label}`: {total_k} failures in {total_n} runs of {len(keys)} scenarios", ""]
+    total_starved = sum(table[(label, k)].starved for k in keys)
+    md = [f"Configuration `{label}`: {total_k} failures in {total_n} runs of {len(keys)} scenarios"
+          + (f" ({total_starved} starved runs not counted: the stack did not get its computer)" if total_starved
+             else ""), ""]
     md += _md(["scenario", "runs", "passed (near misses)", "failed (k of N, by kind)", "invalid tests", "errors",
-               "status"], lines)
-    return md, {"label": label, "runs": total_n, "failures": total_k, "scenarios": out}
+               "starved", "status"], lines)
+    return md, {"label": label, "runs": total_n, "failures": total_k, "starved": total_starved, "scenarios": out}
 
 
 def reproduction(rows: list[dict], label: str, names: dict[str, str], at_least: float = 2 / 3) -> dict:
@@ -165,18 +175,22 @@ def compare_tables(rows: list[dict], labels: list[str], names: dict[str, str]) -
         kb = sum(table[(base, key)].k for key in keys)
         nb = sum(table[(base, key)].n for key in keys)
         p = fisher_p(kb, nb, k, n)
-        summary[label] = {**{g: v for g, v in groups.items()}, "failures": k, "runs": n, "p_pooled": p}
+        hungry = sum(table[(label, key)].starved for key in keys)
+        summary[label] = {**{g: v for g, v in groups.items()}, "failures": k, "runs": n, "p_pooled": p,
+                          "starved": hungry}
         if label == base:
-            lines.append([f"`{label}` (baseline)", f"{k} of {n}", "-", "-", "-", "-", "-"])
+            lines.append([f"`{label}` (baseline)", f"{k} of {n}", "-", "-", "-", "-", "-", hungry])
             continue
-        lines.append([f"`{label}`", f"{k} of {n}", f"{p:.2g}"] + [", ".join(v) or "none" for v in groups.values()])
+        lines.append([f"`{label}`", f"{k} of {n}", f"{p:.2g}"] + [", ".join(v) or "none" for v in groups.values()]
+                     + [hungry])
     md += _md(["configuration", "failures (pooled)", "p (pooled)", "fixed", "improved (flaky)", "kept (still fails)",
-               "broken (new failures)"], lines)
+               "broken (new failures)", "starved (not counted)"], lines)
     cost_md, cost = cost_table(rows, labels, names)
     md += ["", *cost_md]
     return md, {"baseline": base, "configurations": summary, "cost": cost,
                 "cells": {names[key]: {label: {"runs": table[(label, key)].n, "failures": table[(label, key)].k,
                                                "kinds": dict(table[(label, key)].kinds),
+                                               "starved": table[(label, key)].starved,
                                                "status": table[(label, key)].status} for label in labels}
                           for key in keys}}
 

@@ -12,6 +12,11 @@
 * **A goal refused at once.** After a world reset Nav2's controller may still see the robot where
   it was: a refusal within ``NAV2_NOT_READY_S`` simulated seconds sends the goal once more
   (``sim_nodes.adapter.robot_nav2``; docs/choices.md); the first answer is recorded.
+* **A starved stack is never a failure.** A run in which the stack did not get its computer
+  (``ambiegen_ros.sims.timing.starved``: its controller's worst window under the threshold, a late
+  acknowledgement, a lapsed bond) is an ``error`` record of the kind ``starved``
+  (``metrics["error_kind"]``), run again, whatever Nav2 answered (``starved_not_failed``); every
+  Nav2 run carries its figures (``timing.*``).
 * **Nav2's word beside the verdict.** Every result of a Nav2 run carries ``nav2_status``,
   ``nav2_error_code``, ``nav2_error_msg``, ``nav2_first_abort``, ``nav2_resend_wait_s`` and
   ``nav2_recoveries`` (``with_stack_word``); a goal still running is cancelled.
@@ -38,6 +43,22 @@ def ours_not_the_stack(outcome: Outcome) -> Outcome:
                    detail=f"{outcome.detail}: error {code} is ours (ours_error_codes), not the stack's failure; "
                           "run it again",
                    metrics={**outcome.metrics, "sut_failure_kind": outcome.failure_kind},
+                   trajectory=outcome.trajectory, timeline=outcome.timeline, failure_point=outcome.failure_point)
+
+
+def starved_not_failed(outcome: Outcome, figures: dict, reason: str | None) -> Outcome:
+    """The run's timing figures in its metrics; a starved run (``reason``) as an error record of the
+    kind ``starved``, whatever the verdict was (kept in ``sut_failure_kind``), run again. A crash of
+    the stack's process stays what it is: it has its own rerun on a fresh stack."""
+    metrics = {**outcome.metrics, **figures}
+    if reason is None or outcome.failure_kind == "sut_crashed":
+        outcome.metrics = metrics
+        return outcome
+    return Outcome(objectives={}, failed=False, failure_kind="error",
+                   detail=f"starved: the stack did not get its computer ({reason}); the run said: {outcome.verdict} "
+                          f"{outcome.detail}; run it again",
+                   metrics={**metrics, "error_kind": "starved", "starved": reason,
+                            "sut_failure_kind": metrics.get("sut_failure_kind", outcome.failure_kind)},
                    trajectory=outcome.trajectory, timeline=outcome.timeline, failure_point=outcome.failure_point)
 
 

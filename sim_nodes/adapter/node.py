@@ -419,6 +419,8 @@ class SutAdapter:
             outcome = self.mode.with_plans(outcome)
         outcome = with_give_up(outcome, self.order.streams.get("stall"), self.topics.get("stall"))
         outcome = nav2_rules.ours_or_the_stacks(outcome, self.ours_error_codes)
+        if self.nav2 is not None:  # did the stack get its computer? a starved run is no verdict (timing)
+            outcome = self.mode.with_timing(outcome)
         if self.reference and outcome.failed:  # does the in-process reference pass the same scenario?
             budget = nav2_rules.budget_spent(outcome.failure_kind, job.judge.elapsed, self.goal_time_budget)
             outcome = reference.certify(outcome, reference.after(self.problem, job.scenario, self.oracle, outcome,

@@ -22,6 +22,8 @@ rmw_cyclonedds_cpp's wire format, so Nav2 must run on rmw_cyclonedds_cpp there):
   lapses) ends the run as an ``error`` record, unless a crash report explains it within
   ``crash_grace``; the next scenario waits until the nodes are active again (the node's
   ``on_nav2_left_active``).
+* **Its timing is on record** (``sim_nodes.adapter.timing_watch``): /rosout and /cmd_vel_nav, and
+  how long Nav2 took to answer our goal; a starved run is an error record (``with_timing``).
 * The rules for Nav2's answer (ours_error_codes, goal_time_budget, near misses, the refused first
   goal): ``sim_nodes.adapter.nav2_rules``.
 """
@@ -32,9 +34,10 @@ from typing import Any
 from ambiegen_ros.ros.qos import DEFAULT
 
 from .judge import DECIDED, HOLD, RunView
-from .nav2_rules import NAV2_NOT_READY_S, nav2_answer, near_miss, parse_codes
+from .nav2_rules import NAV2_NOT_READY_S, nav2_answer, near_miss, parse_codes, starved_not_failed
 from .params import Param
 from .robot_topic import ROBOT_PARAMS, TopicRobot
+from .timing_watch import TIMING_PARAMS, TimingWatch
 
 NAV2_PARAMS = (
     Param("action_name", str, "navigate_to_pose", "Nav2 action for goal_mode action"),
@@ -67,11 +70,12 @@ class Nav2Robot(TopicRobot):
     """A robot stack whose goal is Nav2's action; Nav2's result is the verdict unless ``early_verdicts``."""
 
     goal_mode = "action"
-    PARAMS = ROBOT_PARAMS + NAV2_PARAMS
+    PARAMS = ROBOT_PARAMS + NAV2_PARAMS + TIMING_PARAMS
 
     def __init__(self, node: Any, settings: Any, oracle: Any, problem: Any):
         super().__init__(node, settings, oracle, problem)
         self.nav2_stamp: int | None = None  # Nav2's result has no stamp: the newest sample's when it came
+        self.timing: TimingWatch | None = None
 
     def wire(self, host: Any) -> None:
         super().wire(host)
@@ -82,6 +86,7 @@ class Nav2Robot(TopicRobot):
                                s.nav2_clear_costmaps.split(","), self.node.logger, manager=s.nav2_lifecycle_manager,
                                restarts=s.nav2_restarts, restart_after=s.nav2_restart_after)
         self.nav2.watch_transitions(DEFAULT, host.on_nav2_left_active)
+        self.timing = TimingWatch(self.node, s)
 
     def needs_subscribers(self) -> list[Any]:
         return [self.pub_initialpose]
@@ -92,17 +97,24 @@ class Nav2Robot(TopicRobot):
     def begin(self, job: Any) -> None:
         super().begin(job)
         self.nav2_stamp = None
+        if self.timing is not None:
+            self.timing.begin()
 
     def prepare_stack(self) -> None:
         self.nav2.clear_costmaps()  # the last scenario's walls out of both costmaps
 
     def send_goal(self, job: Any) -> None:
         self.nav2.send(self.goal_message(job))
+        if self.timing is not None:
+            self.timing.goal_sent()
 
     def step(self, job: Any, view: RunView) -> str | None:
         """Nav2's result as the verdict, once the samples up to it are judged; a goal refused at once
         goes again; a failure of Nav2's waits for a crash report that may explain it."""
         r = self.nav2.result
+        answered = self.nav2.handle is not None or r is not None
+        if self.timing is not None and self.timing.sent is not None and answered:
+            self.timing.answered()  # accepted or refused: the acknowledgement time, to a turn
         if job.nav2_resend_due:  # the refusal on record is not the verdict
             self._resend_when_the_world_ran_on(job)
             return None
@@ -142,3 +154,11 @@ class Nav2Robot(TopicRobot):
         if job.judge.elapsed >= NAV2_NOT_READY_S or waited_s >= NAV2_NOT_READY_S:
             job.nav2_resend_wait_s = waited_s
             self.send_goal(job)
+
+    def with_timing(self, outcome: Any) -> Any:
+        """The run's timing figures in its result; a starved run becomes an error record
+        (``nav2_rules.starved_not_failed``), whatever Nav2 answered."""
+        if self.timing is None:
+            return outcome
+        figures, reason = self.timing.verdict()
+        return starved_not_failed(outcome, figures, reason)

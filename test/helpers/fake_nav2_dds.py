@@ -16,6 +16,9 @@ format (``FakeService``, from the client tests), so the adapter drives it as it 
   running; ``freeze``: the process stops being scheduled: it becomes, under the same pid and node
   name, a process that sleeps for ever (state S, no CPU: as a frozen cgroup or an uninterruptible
   wait leaves a process, which no signal state shows);
+* ``controller_server``, with ``FAKE_NAV2_STARVED=1``: a starved controller, as navigation2 jazzy's says
+  it on /rosout (``rcl_interfaces/msg/Log``, rcl's QoS): "Control loop missed its desired rate of
+  10.0000 Hz. ..." each cycle while a goal runs (its 10 Hz: every cycle missed);
 * ``planner_server`` and ``controller_server`` serve their costmap's clearing; the lifecycle manager says
   it is active; ``behavior_server`` only answers its state.
 """
@@ -133,6 +136,10 @@ class Controller:
         interfaces.ensure(node._registry, ACTION)
         node.create_subscription(ACTION + "_FeedbackMessage", FEEDBACK, self.on_feedback, ANY, raw=True)
         self.mode = os.environ.get("FAKE_NAV2_CONTROLLER", "hold")
+        self.rosout = None
+        if os.environ.get("FAKE_NAV2_STARVED") == "1":  # rcl's /rosout publisher: reliable, transient local
+            self.rosout = node.create_publisher("rcl_interfaces/msg/Log", "/rosout",
+                                                Qos(reliable=True, transient_local=True, depth=1000))
         self.drive = int(os.environ.get("FAKE_NAV2_DRIVE", "20"))
         self.goal: bytes | None = None
         self.sent = 0  # commands ahead for this goal
@@ -147,6 +154,10 @@ class Controller:
         if now < self.next:
             return
         self.next = now + PERIOD_S
+        if self.rosout is not None and self.goal is not None:
+            self.rosout.publish(self.node.new_message(
+                "rcl_interfaces/msg/Log", level=30, name=self.node.name, msg="Control loop missed its desired rate of "
+                "10.0000 Hz. Current loop rate is 4.1000 Hz."))
         if self.goal is not None and self.sent >= self.drive:
             if self.mode == "freeze":
                 print("frozen", flush=True)

@@ -1,0 +1,93 @@
+"""The timing record of a Nav2 run and its rule ``starved`` (``ambiegen_ros.sims.timing``), on crafted
+event streams: a clean run, one bad window the mean hides, a stall the controller owned up to, a
+recovery's silence, a late acknowledgement (ours and the tree's), a lapsed bond. The log lines are
+navigation2 jazzy's own words (controller_server.cpp, bt_action_node.hpp, lifecycle_manager.cpp)."""
+from __future__ import annotations
+
+import pytest
+
+from ambiegen_ros.sims.timing import Thresholds, TimingRecord, starved, summary, worst_window_hz
+
+MISSED = "Control loop missed its desired rate of 20.0000 Hz. Current loop rate is 7.1000 Hz."
+LATE = "Timed out while waiting for action server to acknowledge goal request for follow_path"
+HEARTBEAT = "\x1b[34m\x1b[1mHave not received a heartbeat from controller_server.\x1b[0m\x1b[0m"
+DOWN = ("CRITICAL FAILURE: SERVER controller_server IS DOWN after not receiving a heartbeat for 4000 ms. "
+        "Shutting down related nodes.")
+
+
+def ticks(start: float, seconds: float, hz: float) -> list[float]:
+    return [start + k / hz for k in range(int(round(seconds * hz)))]
+
+
+def record(*streams: list[float], lines=(), acks=()) -> TimingRecord:
+    r = TimingRecord(controller_hz=20.0)
+    for t in sorted(t for s in streams for t in s):
+        r.loop(t)
+    for t, name, text in lines:
+        r.log(t, name, text)
+    for a in acks:
+        r.ack(a)
+    return r
+
+
+def test_a_clean_run_is_not_starved_and_its_worst_window_is_its_rate():
+    r = record(ticks(0.0, 30.0, 20.0), acks=[0.02])
+    assert starved(r) is None
+    s = summary(r)
+    assert s["timing.worst_window_hz"] == pytest.approx(20.0)
+    assert s["timing.loop_windows"] > 500 and s["timing.missed_loops"] == 0 and s["timing.ack_s"] == 0.02
+    assert all(isinstance(v, (int, float)) for v in s.values()), "flat numbers, so tables can read them"
+
+
+def test_one_bad_window_starves_the_run_though_the_mean_is_fine():
+    slow = ticks(10.0, 3.0, 5.0)  # 3 s at 5 Hz inside 23 s at 20 Hz: the mean stays above 17 Hz
+    r = record(ticks(0.0, 10.0, 20.0), slow, ticks(13.0, 10.0, 20.0))
+    assert len(r.loops) / 23.0 > 15.0
+    worst, _ = worst_window_hz(r.loops, r.missed, 20.0, Thresholds())
+    assert worst == pytest.approx(5.0)
+    assert "5.0 Hz in its worst 2 s" in starved(r)
+    assert starved(record(ticks(0.0, 10.0, 20.0), ticks(10.0, 3.0, 12.0), ticks(13.0, 10.0, 20.0))) is None
+
+
+def test_a_silence_is_idle_unless_the_controller_says_it_missed_its_rate():
+    before, after = ticks(0.0, 5.0, 20.0), ticks(8.0, 5.0, 20.0)  # 3 s without a command: a recovery (a spin)
+    assert starved(record(before, after)) is None
+    stalled = record(before, after, lines=[(8.01, "controller_server", MISSED)])
+    assert "worst 2 s" in starved(stalled), "a cycle that overran by 3 s is the controller starved, not idle"
+
+
+def test_missed_rate_lines_alone_starve_a_run_without_cmd_vel_nav():
+    lines = [(t, "controller_server", MISSED) for t in ticks(4.0, 1.0, 20.0)]  # 20 of 40 cycles in 2 s
+    r = record(lines=lines)
+    assert "missed 50% of its cycles" in starved(r) and summary(r)["timing.missed_loops"] == 20
+    assert "timing.worst_window_hz" not in summary(r)
+    assert starved(record(lines=lines[:15])) is None
+
+
+def test_the_rate_the_controller_names_is_its_frequency():
+    r = record(ticks(0.0, 10.0, 10.0), lines=[(5.0, "controller_server",
+                                              "Control loop missed its desired rate of 10.0000Hz")])
+    assert r.controller_hz == 10.0 and starved(r) is None
+
+
+def test_a_late_acknowledgement_starves_the_run_ours_or_the_trees():
+    assert starved(record(ticks(0.0, 10.0, 20.0), acks=[0.05, 0.9])) is None
+    ours = starved(record(ticks(0.0, 10.0, 20.0), acks=[0.05, 1.4]))
+    assert "1.40 s to acknowledge our goal" in ours
+    tree = record(ticks(0.0, 10.0, 20.0), lines=[(3.0, "bt_navigator", LATE)])
+    assert "late acknowledgement (follow_path)" in starved(tree) and summary(tree)["timing.late_acks"] == 1
+
+
+def test_a_lapsed_bond_starves_the_run_and_its_two_lines_are_one_lapse():
+    r = record(ticks(0.0, 10.0, 20.0), lines=[(6.0, "lifecycle_manager_navigation", HEARTBEAT),
+                                              (6.001, "lifecycle_manager_navigation", DOWN)])
+    assert r.lapses == [(6.0, "controller_server")]
+    assert "lost the bond of controller_server" in starved(r)
+    lenient = Thresholds(max_bond_lapses=1)
+    assert starved(r, lenient) is None
+
+
+def test_other_lines_are_ignored_and_stale_data_only_counted():
+    r = record(ticks(0.0, 10.0, 20.0), lines=[(1.0, "local_costmap", "Transform data too old when converting"),
+                                              (2.0, "planner_server", "Reached the goal!")])
+    assert starved(r) is None and summary(r)["timing.stale_data"] == 1
