@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..ros.transport.signals import alive
+
 OURS = ("robot_world", "sut_adapter", "recorder")
 TICKS = os.sysconf("SC_CLK_TCK")
 LAUNCH_DIED = re.compile(r"\[ERROR\] \[(?P<process>[A-Za-z0-9_./-]+?)-\d+\]: process has died "
@@ -276,16 +278,6 @@ class Scheduling:
                 out.append(Death(who, "stack",
                                  f"stopped being scheduled (hung: no CPU time for {quiet:.0f} s)", name))
         return out
-
-
-def alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 __all__ = ["Death", "OURS", "SCHEDULED_FLOOR_S", "Scheduling", "Watch", "alive", "children", "descendants",

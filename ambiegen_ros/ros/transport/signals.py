@@ -161,7 +161,8 @@ def _set_pdeathsig(sig: int) -> bool:
         return False
 
 
-def _alive(pid: int) -> bool:
+def alive(pid: int) -> bool:
+    """Is there a process ``pid`` (one of another user's counts)?"""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -185,12 +186,12 @@ def watch_parent(environ: dict[str, str] | None = None) -> str:
     direct = os.getppid() == parent
     if direct and _set_pdeathsig(signal.SIGTERM) and os.getppid() == parent:
         return "pdeathsig"  # checked again after prctl: a parent that died just before is not missed
-    if (direct and os.getppid() != parent) or not _alive(parent):
+    if (direct and os.getppid() != parent) or not alive(parent):
         os.kill(os.getpid(), signal.SIGTERM)
         return "gone"
 
     def poll() -> None:
-        while (os.getppid() == parent) if direct else _alive(parent):
+        while (os.getppid() == parent) if direct else alive(parent):
             time.sleep(PARENT_POLL_S)
         os.kill(os.getpid(), signal.SIGTERM)
 
@@ -198,5 +199,5 @@ def watch_parent(environ: dict[str, str] | None = None) -> str:
     return "poll"
 
 
-__all__ = ["PARENT_VAR", "STOP_SIGNALS", "Stopped", "child_env", "install", "register", "restore", "signal_name",
+__all__ = ["PARENT_VAR", "STOP_SIGNALS", "Stopped", "alive", "child_env", "install", "register", "restore", "signal_name",
            "stop_requested", "stop_signal", "unregister", "watch_parent"]
