@@ -340,7 +340,7 @@ def test_the_thermostat_publishes_its_set_points_on_their_schedule():
 # --- the tables -------------------------------------------------------------------------------------
 @pytest.mark.parametrize("name, value, says", [
     ("stamp_clock", "sundial", "stamp_clock: unknown 'sundial' (allowed: sim|wall|receive)"),
-    ("goal_mode", "carrier_pigeon", "goal_mode: unknown 'carrier_pigeon' (allowed: topic|action)"),
+    ("goal_mode", "carrier_pigeon", "goal_mode: unknown 'carrier_pigeon' (allowed: topic|action|plan)"),
     ("problem", "submarine", "problem: unknown 'submarine' (allowed: robot|vehicle|thermostat)"),
     ("time_scale", 0.0, "time_scale: must be > 0"),
     ("time_scale", float("nan"), "time_scale: must be > 0"),

@@ -41,6 +41,19 @@ ACTIONS: dict[str, str] = {
         "geometry_msgs/PoseStamped current_pose\nbuiltin_interfaces/Duration navigation_time\n"
         "builtin_interfaces/Duration estimated_time_remaining\nint16 number_of_recoveries\n"
         "float32 distance_remaining\n"),
+    "nav2_msgs/action/ComputePathToPose": (
+        "geometry_msgs/PoseStamped goal\ngeometry_msgs/PoseStamped start\nstring planner_id\nbool use_start\n---\n"
+        "uint16 NONE=0\nuint16 UNKNOWN=200\nuint16 INVALID_PLANNER=201\nuint16 TF_ERROR=202\n"
+        "uint16 START_OUTSIDE_MAP=203\nuint16 GOAL_OUTSIDE_MAP=204\nuint16 START_OCCUPIED=205\n"
+        "uint16 GOAL_OCCUPIED=206\nuint16 TIMEOUT=207\nuint16 NO_VALID_PATH=208\n"
+        "nav_msgs/Path path\nbuiltin_interfaces/Duration planning_time\nuint16 error_code\nstring error_msg\n---\n"),
+    "nav2_msgs/action/SmoothPath": (
+        "nav_msgs/Path path\nstring smoother_id\nbuiltin_interfaces/Duration max_smoothing_duration\n"
+        "bool check_for_collisions\n---\n"
+        "uint16 NONE=0\nuint16 UNKNOWN=500\nuint16 INVALID_SMOOTHER=501\nuint16 TIMEOUT=502\n"
+        "uint16 SMOOTHED_PATH_IN_COLLISION=503\nuint16 FAILED_TO_SMOOTH_PATH=504\nuint16 INVALID_PATH=505\n"
+        "nav_msgs/Path path\nbuiltin_interfaces/Duration smoothing_duration\nbool was_completed\n"
+        "uint16 error_code\nstring error_msg\n---\n"),
 }
 UUID = "unique_identifier_msgs/msg/UUID"
 

@@ -70,7 +70,8 @@ COMMON = (
     Param("run_invalid", bool, False, "also run scenarios the problem calls invalid"),
     Param("reference", bool, True, "a failure counts only when the problem's reference passes the scenario (false: "
                                    "the old, unchecked verdicts)"),
-    Param("goal_mode", str, "topic", "topic | action (Nav2 navigate_to_pose)", allowed=GOAL_MODES),
+    Param("goal_mode", str, "topic", "topic | action (Nav2 navigate_to_pose) | plan (Nav2's planner_server alone: "
+                                     "compute_path_to_pose)", allowed=GOAL_MODES),
     Param("known_failures", str, "", "YAML of known failures (ambiegen_ros/sims/known_failures.py): a failure "
                                      "matching one is recorded as FAIL(kind, known: name) ('' = none)"),
     Param("stack_events_topic", str, topics.STACK_EVENTS,
@@ -93,7 +94,8 @@ def help_doc() -> str:
         seen |= {p.name for p in new}
         mode = f", goal_mode:={judge.goal_mode}" if judge.goal_mode else ""
         sections.append((f"Parameters with problem:={judge.problem}{mode} ({judge.__module__})", new))
-    fields = "; ".join(f"{judge.problem}: {', '.join(judge.ORACLE_FIELDS)}" for judge in JUDGES if judge.goal_mode != "action")
+    fields = "; ".join(f"{judge.problem}: {', '.join(judge.ORACLE_FIELDS)}" for judge in JUDGES
+                       if judge.goal_mode not in ("action", "plan"))
     return params.help_text(sections) + f"\n\noracle.<field>: the oracle's thresholds (defaults: the full model's); {fields}"
 
 
@@ -421,7 +423,8 @@ class SutAdapter:
         outcome = nav2_rules.ours_or_the_stacks(outcome, self.ours_error_codes)
         if self.nav2 is not None:  # did the stack get its computer? a starved run is no verdict (timing)
             outcome = self.mode.with_timing(outcome)
-        if self.reference and outcome.failed:  # does the in-process reference pass the same scenario?
+        certified = getattr(self.mode, "certifies_itself", False)  # the planner judge's own reference planner
+        if self.reference and outcome.failed and not certified:  # does the in-process reference pass it?
             budget = nav2_rules.budget_spent(outcome.failure_kind, job.judge.elapsed, self.goal_time_budget)
             outcome = reference.certify(outcome, reference.after(self.problem, job.scenario, self.oracle, outcome,
                                                                  budget=budget) or job.before)

@@ -1,0 +1,226 @@
+"""The planner judge (``goal_mode:=plan``, issue 68) without a node or a middleware.
+
+Its decisions: a path through a wall is FAIL(collision); a clear one PASS; a refusal where the
+reference planner has a path is a failure carrying the certificate; a refusal the reference
+proves right is INVALID_TEST; planning over the plugin's own time limit is a note, never a
+failure; a smoothed path that hits a wall its input missed is FAIL(collision). And its way
+there on a stand-in node: the map goes out, a costmap still showing another map never lets the
+question go, the matching one does, and the planner's answer (or its silence) ends the run.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+for extra in (REPO, REPO / "test", REPO / "test" / "sims"):
+    if str(extra) not in sys.path:
+        sys.path.insert(0, str(extra))
+
+from ambiegen_ros.core.config import ConfigError  # noqa: E402
+from ambiegen_ros.ros import conversions  # noqa: E402
+from ambiegen_ros.sims.plans import rules  # noqa: E402
+from ambiegen_ros.sims.plans.costmap import costmap_from_occupancy  # noqa: E402
+from sim_nodes.adapter.judge import DECIDED, HOLD, RunView  # noqa: E402
+from sim_nodes.adapter.registry import judge_for  # noqa: E402
+from sim_nodes.adapter.robot_planner import (PlanAnswer, PlannerRobot, costmap_shows, parse_rules,  # noqa: E402
+                                             plan_outcome, planner_rules)
+from test_adapter_judges import REG, StandInNode, make_judge, robot, robot_job  # noqa: E402,F401
+
+RES = 0.05
+
+
+def room(wall: str = "none") -> np.ndarray:
+    """A 60 x 40 cell room (3 x 2 m): a wall across x = 1.5 m with a gap (``gap``), without (``full``), or none."""
+    occ = np.zeros((40, 60), dtype=np.int8)
+    if wall != "none":
+        occ[:, 29:31] = 100
+        if wall == "gap":
+            occ[2:20, 29:31] = 0  # 0.9 m: wide enough for the inflated robot
+    return occ
+
+
+def line(a, b, n=60):
+    t = np.linspace(0.0, 1.0, n)[:, None]
+    xy = (1 - t) * np.asarray(a) + t * np.asarray(b)
+    return np.column_stack([xy, np.zeros(n)])
+
+
+START, GOAL = (0.5, 1.5, 0.0), (2.5, 1.5, 0.0)
+
+
+def test_a_straight_line_through_a_wall_fails_by_collision_and_a_clear_one_passes():
+    blocked = costmap_from_occupancy(room("gap"), RES)
+    out = plan_outcome(blocked, rules.navfn(), START, GOAL, PlanAnswer(status=4, path=line(START[:2], GOAL[:2])))
+    assert out.verdict == "FAIL(collision)" and out.metrics["plan_oracle"] == "collision"
+    assert out.failure_point is not None and 1.45 - 0.22 <= out.failure_point[0] <= 1.55  # the body meets the wall
+    clear = costmap_from_occupancy(room("none"), RES)
+    ok = plan_outcome(clear, rules.navfn(), START, GOAL, PlanAnswer(status=4, path=line(START[:2], GOAL[:2])))
+    assert ok.verdict == "PASS" and ok.trajectory.shape == (60, 2)
+    assert ok.metrics["plan_clearance_m"] is None  # no lethal cell anywhere
+    assert ok.objectives["plan_closeness"] < out.objectives["plan_closeness"]  # the wall is closer to failing
+
+
+def test_a_refusal_where_a_path_exists_fails_with_the_certificate_and_a_proved_one_is_invalid():
+    gap = costmap_from_occupancy(room("gap"), RES)
+    refused = PlanAnswer(status=6, error_code=208, error_msg="no valid path")
+    out = plan_outcome(gap, rules.navfn(), START, GOAL, refused)
+    assert out.verdict == "FAIL(requirement)" and out.detail.startswith("missed_path: ")
+    cert = out.metrics["certificate"]
+    assert cert["status"] == "path" and len(cert["poses"]) > 2
+    assert all(p[1] < 1.0 for p in cert["poses"] if 1.4 < p[0] < 1.6)  # through the gap, low on the wall
+    full = costmap_from_occupancy(room("full"), RES)
+    proved = plan_outcome(full, rules.navfn(), START, GOAL, refused)
+    assert proved.verdict.startswith("INVALID_TEST(") and not proved.failed
+    assert proved.metrics["plan_oracle"] == "correct_refusal" and proved.metrics["reference"]["status"] == "absent"
+
+
+def test_planning_over_the_plugins_own_limit_is_a_note_never_a_failure():
+    clear = costmap_from_occupancy(room("none"), RES)
+    slow = PlanAnswer(status=4, path=line(START[:2], GOAL[:2]), planning_time=3.5)
+    out = plan_outcome(clear, rules.smac_2d(), START, GOAL, slow)
+    assert out.verdict == "PASS" and "over its max_planning_time 2.0" in out.metrics["plan_performance"]
+    assert "plan_performance" not in plan_outcome(clear, rules.navfn(), START, GOAL, slow).metrics  # NavFn: none
+
+
+def test_a_smoothed_path_into_a_wall_its_input_missed_fails_by_collision():
+    gap = costmap_from_occupancy(room("gap"), RES)
+    around = np.vstack([line(START[:2], (1.5, 0.55), 30), line((1.5, 0.55), GOAL[:2], 30)[1:]])
+    fine = plan_outcome(gap, rules.navfn(), START, GOAL, PlanAnswer(status=4, path=around))
+    assert fine.verdict == "PASS", fine.detail
+    cut = plan_outcome(gap, rules.navfn(), START, GOAL,
+                       PlanAnswer(status=4, path=around, smoothed=line(START[:2], GOAL[:2])))
+    assert cut.verdict == "FAIL(collision)" and cut.metrics["plan_oracle"] == "smoother_collision"
+
+
+def test_the_rules_come_from_the_plugin_with_the_users_overrides_and_a_bad_one_is_one_line():
+    assert parse_rules("tolerance=0.25, allow_unknown=false") == {"tolerance": 0.25, "allow_unknown": False}
+    r = planner_rules("navfn", parse_rules("tolerance=0.25"))
+    assert r.name == "navfn" and r.tolerance == 0.25
+    assert planner_rules("smac_hybrid", {"motion_model": "REEDS_SHEPP"}).reversing
+    with pytest.raises(ConfigError, match="planner_rules"):
+        planner_rules("navfn", {"turning": 1.0})
+    with pytest.raises(ConfigError, match="planner_rules"):
+        make_judge(PlannerRobot, SimpleNamespace(name="robot"), planner_rules="tolerance")
+    assert judge_for("robot", "plan") is PlannerRobot
+
+
+# --- on a stand-in node ---------------------------------------------------------------------------
+class Future:
+    def __init__(self, value=None):
+        self.value, self.callbacks = value, []
+
+    def result(self):
+        return self.value
+
+    def add_done_callback(self, cb):
+        self.callbacks.append(cb)
+        if self.value is not None:  # done already: at once, as a finished future does
+            cb(self)
+
+    def resolve(self, value):
+        self.value = value
+        for cb in self.callbacks:
+            cb(self)
+
+
+class StandInAction:
+    def __init__(self):
+        self.goals, self.futures = [], []
+
+    def server_is_ready(self):
+        return True
+
+    def new_goal(self, **fields):
+        return SimpleNamespace(**fields)
+
+    def send_goal_async(self, request):
+        self.goals.append(request)
+        self.futures.append(Future())
+        return self.futures[-1]
+
+
+class PlannerNode(StandInNode):
+    def __init__(self):
+        super().__init__()
+        self.actions = {}
+
+    def create_action_client(self, typename, name):
+        self.actions[name] = StandInAction()
+        return self.actions[name]
+
+    def create_client(self, typename, service):
+        return SimpleNamespace(service_is_ready=lambda: True, new_request=lambda: None,
+                               call_async=lambda _r: Future(SimpleNamespace(current_state=SimpleNamespace(
+                                   label="active"))))
+
+
+@pytest.fixture()
+def planner(robot, monkeypatch):
+    monkeypatch.setattr("test_adapter_judges.StandInNode", PlannerNode)
+    judge, node, host = make_judge(PlannerRobot, robot[0], map_upsample=2, answer_timeout=5.0)
+    node.ns = 10  # the map's stamp
+    job = robot_job(judge, node, robot[1])
+    host.job = job
+    return judge, node, job
+
+
+def costmap_message(published, stamp_ns, occupied=None):
+    """The OccupancyGrid a Nav2 costmap would publish for ``published`` (lethal = 100), stamped."""
+    info = published.info
+    data = np.asarray(published.data, dtype=np.int8) if occupied is None else occupied
+    return REG.new("nav_msgs/msg/OccupancyGrid", header=conversions.header(REG.new, stamp_ns), info=info,
+                   data=np.where(np.asarray(data).reshape(-1) >= 100, 100, 0).astype(np.int8))
+
+
+def answer_with(action, path_xy, status=4, code=0):
+    result = SimpleNamespace(error_code=code, error_msg="", planning_time=SimpleNamespace(sec=0, nanosec=1000),
+                             path=conversions.path(REG.new, 0, path_xy))
+    handle = SimpleNamespace(accepted=True, get_result_async=lambda: Future(SimpleNamespace(status=status,
+                                                                                            result=result)))
+    action.futures[-1].resolve(handle)
+
+
+def test_the_question_waits_for_a_costmap_that_shows_this_map_then_the_answer_decides(planner):
+    judge, node, job = planner
+    (grid,) = node.pubs["/map"].sent
+    assert grid.info.width == 2 * job.msg.map.info.width  # map_upsample
+    assert node.pubs["/tf_static"].sent[0].transforms[1].child_frame_id == "base_link"
+    judge.send_goal(job)
+    view = RunView(0.0, None, False, lambda: False)
+    plan = node.actions["compute_path_to_pose"]
+    stale = np.zeros(len(grid.data), dtype=np.int8)  # the last scenario's walls gone, this one's not yet in
+    judge.on_costmap(costmap_message(grid, 20, stale))
+    assert judge.step(job, view) == HOLD and not plan.goals and "lethal" in judge.why_not
+    judge.on_costmap(costmap_message(grid, 0))  # right cells, stamped before the map
+    assert judge.step(job, view) == HOLD and not plan.goals
+    judge.on_costmap(costmap_message(grid, 20))
+    assert judge.step(job, view) == HOLD
+    (goal,) = plan.goals
+    assert goal.use_start and (goal.start.pose.position.x, goal.goal.pose.position.x) == (1.5, 48.5)
+    # the robot problem's wall stack at column 48 lies across no diagonal: a straight line is clear
+    answer_with(plan, np.array([[1.5, 1.5], [25.0, 25.0], [48.5, 48.5]]))
+    assert judge.step(job, view) == DECIDED  # judged on the turn after the answer
+    out = job.judge.outcome()
+    assert out.verdict == "PASS" and out.metrics["planner"] == "navfn", out.detail
+
+
+def test_a_planner_that_never_answers_is_hung_and_a_costmap_that_never_comes_is_ours(planner):
+    judge, node, job = planner
+    judge.send_goal(job)
+    (grid,) = node.pubs["/map"].sent
+    judge.on_costmap(costmap_message(grid, 20))
+    judge.step(job, RunView(judge.since, None, False, lambda: False))
+    assert judge.step(job, RunView(judge.since + 6.0, None, False, lambda: False)) == DECIDED
+    assert job.judge.outcome().verdict == "FAIL(sut_crashed)" and "hung" in job.judge.outcome().detail
+    other, node2, job2 = judge, node, job
+    other.begin(job2)
+    node2.ns = 30  # a new map, after the last costmap's stamp 20
+    other.setup(job2, 0.0)
+    other.send_goal(job2)
+    assert other.step(job2, RunView(other.since + 25.0, None, False, lambda: False)) == DECIDED
+    assert job2.judge.outcome().failure_kind == "error" and "did not show" in job2.judge.outcome().detail
