@@ -41,6 +41,19 @@ def jit(func: Callable) -> Callable | None:
     return numba.njit(cache=True, error_model="numpy")(func)
 
 
+COMPILED: dict[Callable, Callable] = {}
+"""What ``compiled_or_plain`` gave each function (a test sets a function's entry to the function
+itself to run its plain path)."""
+
+
+def compiled_or_plain(func: Callable) -> Callable:
+    """``func`` compiled by numba on first use, once per process, else ``func`` itself (the same bits)."""
+    got = COMPILED.get(func)
+    if got is None:
+        got = COMPILED[func] = jit(func) or func
+    return got
+
+
 def numba_error() -> str:
     """Why numba does not load ('' when it does); tries the import once."""
     numba_module()

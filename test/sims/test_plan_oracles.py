@@ -13,6 +13,7 @@ import math
 import numpy as np
 import pytest
 
+from ambiegen_ros.core import accel
 from ambiegen_ros.sims.plans import costmap as C
 from ambiegen_ros.sims.plans import oracles as O
 from ambiegen_ros.sims.plans import reference as R
@@ -130,12 +131,9 @@ def test_compiled_and_plain_brushfire_agree():
     rng = np.random.default_rng(2)
     static = C.static_layer_costs(np.where(rng.random((30, 35)) < 0.05, 100, 0))
     compiled = C.inflate(static, RES)
-    saved = C._KERNEL
-    try:
-        C._KERNEL = C._brushfire
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setitem(accel.COMPILED, C._brushfire, C._brushfire)
         plain = C.inflate(static, RES)
-    finally:
-        C._KERNEL = saved
     assert (compiled == plain).all()
 
 
@@ -399,12 +397,9 @@ def test_compiled_and_plain_astar_agree():
     cm = C.costmap_from_occupancy(occ)
     grid = R.ReferenceGrid(cm, P.smac_2d())
     compiled = grid.plan(centre(12, 90), centre(88, 90))
-    saved = R._ASTAR
-    try:
-        R._ASTAR = R._astar
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setitem(accel.COMPILED, R._astar, R._astar)
         plain = grid.plan(centre(12, 90), centre(88, 90))
-    finally:
-        R._ASTAR = saved
     assert compiled.found and plain.length == pytest.approx(compiled.length)
     assert tuple(plain.cells[-1]) == tuple(compiled.cells[-1])
 

@@ -50,6 +50,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ...core.accel import compiled_or_plain
+
 FREE_SPACE = 0
 MAX_NON_OBSTACLE = 252
 INSCRIBED = 253
@@ -260,19 +262,6 @@ def _brushfire(master: np.ndarray, sources: np.ndarray, cached: np.ndarray, leve
             i = nxt[i]
 
 
-_KERNEL: Any = None
-
-
-def _kernel() -> Any:
-    """The brushfire compiled by numba when it loads, else the plain function (same bits)."""
-    global _KERNEL
-    if _KERNEL is None:
-        from ...core.accel import jit
-
-        _KERNEL = jit(_brushfire) or _brushfire
-    return _KERNEL
-
-
 def inflate(costs: np.ndarray, resolution: float, inflation_radius: float = JAZZY.inflation_radius,
             cost_scaling_factor: float = JAZZY.cost_scaling_factor,
             inscribed: float | None = None, robot_radius: float = JAZZY.robot_radius,
@@ -298,7 +287,7 @@ def inflate(costs: np.ndarray, resolution: float, inflation_radius: float = JAZZ
     src = (master == LETHAL) | ((master == NO_INFORMATION) if inflate_around_unknown else False)
     ys, xs = np.nonzero(src)  # row-major, as Nav2's loop (j outer, i inner)
     sources = np.column_stack([xs, ys]).astype(np.int64)
-    _kernel()(master, sources, cached, levels, cell_radius, int(levels.max()), bool(inflate_unknown))
+    compiled_or_plain(_brushfire)(master, sources, cached, levels, cell_radius, int(levels.max()), bool(inflate_unknown))
     return master
 
 

@@ -38,6 +38,8 @@ from typing import Any, Optional
 import numpy as np
 from scipy import ndimage
 
+from ...core.accel import compiled_or_plain
+
 from .costmap import Costmap
 from .rules import PlannerRules
 
@@ -143,7 +145,7 @@ class ReferenceGrid:
         aim[ty[best], tx[best]] = True
         cx, cy = float(tx[best].mean()), float(ty[best].mean())  # the heuristic aims at their middle ...
         slack = float(np.max(np.hypot(tx[best] - cx, ty[best] - cy))) * _SQRT2  # ... less this
-        end, cost, parent = _astar_kernel()(free, s[0], s[1], aim, cx, cy, slack)
+        end, cost, parent = compiled_or_plain(_astar)(free, s[0], s[1], aim, cx, cy, slack)
         chain = [int(end)]
         start_i = s[1] * nx + s[0]
         while chain[-1] != start_i:
@@ -199,19 +201,6 @@ def _astar(free: np.ndarray, sx: int, sy: int, aim: np.ndarray, cx: float, cy: f
                 h = max(ax, ay) + 0.41421356237309515 * min(ax, ay) - slack
                 heapq.heappush(heap, (ng + max(h, 0.0), ng, v))
     return -1, np.inf, parent
-
-
-_ASTAR: Any = None
-
-
-def _astar_kernel() -> Any:
-    """``_astar`` compiled by numba when it loads, else the plain function."""
-    global _ASTAR
-    if _ASTAR is None:
-        from ...core.accel import jit
-
-        _ASTAR = jit(_astar) or _astar
-    return _ASTAR
 
 
 def reference_plan(costmap: Costmap, rules: PlannerRules, start: tuple[float, float],
