@@ -11,9 +11,6 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
-for extra in (REPO, REPO / "test"):
-    if str(extra) not in sys.path:
-        sys.path.insert(0, str(extra))
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402

@@ -21,9 +21,6 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-for extra in (REPO, REPO / "test"):
-    if str(extra) not in sys.path:
-        sys.path.insert(0, str(extra))
 
 from helpers.stopping import Command, mcap_summary, running, wait_gone  # noqa: E402
 

@@ -13,15 +13,11 @@ from __future__ import annotations
 import json
 import os
 import signal
-import sys
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-for extra in (REPO, REPO / "test"):
-    if str(extra) not in sys.path:
-        sys.path.insert(0, str(extra))
 
 from helpers.stopping import Command, mcap_summary, wait_gone  # noqa: E402
 

@@ -24,9 +24,6 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-for extra in (REPO, REPO / "test"):
-    if str(extra) not in sys.path:
-        sys.path.insert(0, str(extra))
 
 from ambiegen_ros.nav2_params import OVERLAY_FILE, package_file  # noqa: E402
 from ambiegen_ros.ros.transport import dds_backend  # noqa: E402

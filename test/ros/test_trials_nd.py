@@ -21,9 +21,6 @@ import pytest
 from mcap.reader import make_reader
 
 REPO = Path(__file__).resolve().parents[2]
-for extra in (REPO, REPO / "test"):
-    if str(extra) not in sys.path:
-        sys.path.insert(0, str(extra))
 
 from ambiegen_ros.problems import get_problem  # noqa: E402
 from ambiegen_ros.ros import topics  # noqa: E402
