@@ -299,18 +299,27 @@ def nav2_result_timeout(cfg: Any, speed: float | None, time_scale: float, start_
     return 2.0 * cfg.time_limit(10 * 50.0, speed) / time_scale + start_timeout + 60.0
 
 
-def campaign_robot(robot: str, params: dict) -> tuple[str, dict]:
-    """The robot as the world and the adapter take it, and the params with its body and limits
-    (``nav2_params.with_robot``), once it is known that the params' controller can drive it
-    (``ValueError`` naming the field otherwise). A shipped name stays a name; a file becomes an
-    absolute path, so every node reads the file checked here, whatever its working directory."""
-    from .nav2_params import with_robot
-    from .sims.robot_profile import check_controller, load_profile, profile_path
+def node_robot(robot: str) -> tuple[str, Any]:
+    """The robot as the world and the adapter take it (``robot_profile``), and its checked profile
+    (``ProfileError`` naming the field otherwise). A shipped name stays a name; a file becomes an
+    absolute path, so every node reads the file checked here, whatever its working directory. The
+    Nav2 campaign launch and the supervised trials (``ambiegen rerun --robot``) both resolve it here."""
+    from .sims.robot_profile import load_profile, profile_path
 
     profile = load_profile(robot)
-    check_controller(profile, params)
     path = profile_path(robot)
-    return (str(path.absolute()) if path == Path(robot) else robot), with_robot(params, profile)
+    return (str(path.absolute()) if path == Path(robot) else robot), profile
+
+
+def campaign_robot(robot: str, params: dict) -> tuple[str, dict]:
+    """``node_robot``'s robot, and the params with its body and limits (``nav2_params.with_robot``),
+    once it is known that the params' controller can drive it (``ValueError`` naming the field otherwise)."""
+    from .nav2_params import with_robot
+    from .sims.robot_profile import check_controller
+
+    value, profile = node_robot(robot)
+    check_controller(profile, params)
+    return value, with_robot(params, profile)
 
 
 def plan_nav2_campaign(values: dict[str, str], share_dir: str, seed: int | None = None) -> CampaignPlan:

@@ -68,6 +68,11 @@ def _common(p: argparse.ArgumentParser, many: bool, search: bool = False) -> Non
                    "only when it moves towards them faster than this (default: the world's, 0.01 m/s)")
     p.add_argument("--overlay", default="", metavar="FILE.yaml|none", help="Nav2 stacks: merged on the first params "
                    "file (default: the package's config/nav2/ambiegen_overlay.yaml, our world's frames and body)")
+    p.add_argument("--robot", default="", metavar="NAME|FILE.yaml", help="the robot the world drives and the adapter "
+                   "judges: a shipped profile (turtlebot4, turtlebot3_burger, omni_base, ackermann_car, pioneer2dx) or "
+                   "a profile file (docs/robot_profiles.md); Nav2 stacks: its body and limits go into every "
+                   "configuration's params, once their controller can drive it; recorded in every row (default: "
+                   "Stage's Pioneer, as before)")
     p.add_argument("--known-failures", default="", metavar="FILE.yaml|none", help="Nav2 stacks: failures Nav2's "
                    "engineers know, recorded as known (default: the package's config/nav2/known_failures.yaml)")
     p.add_argument("--early-verdicts", action="store_true", help="Nav2 stacks: the paper's stall and loitering "
@@ -143,12 +148,26 @@ def _settings(args, results: Path):
     if args.start_timeout is not None and not args.start_timeout > 0:
         raise BadInput("--start-timeout: must be > 0")
     bags = Path(args.bags) if args.bags else results.parent / f"{results.stem}_bags"
-    return TrialSettings(stack=args.stack, results=results, bags=bags, repeat=getattr(args, "repeat", 1),
+    robot = _robot(args.robot)
+    return TrialSettings(robot=robot, stack=args.stack, results=results, bags=bags, repeat=getattr(args, "repeat", 1),
                          time_scale=args.time_scale,
                          seed=args.seed, domain_id=args.domain_id, known_failures=str(known) if known else None,
                          fault_speed=args.fault_speed, early_verdicts=args.early_verdicts,
                          start_timeout=args.start_timeout, hang_after=args.hang_after,
                          faults=[parse_fault(spec) for spec in args.inject], our_transport=args.our_transport)
+
+
+def _robot(robot: str) -> str:
+    """``--robot`` as the world and the adapter take it (``launch_logic.node_robot``, as the Nav2
+    campaign launch resolves it), checked before anything starts; '' stays '' (the Pioneer)."""
+    from ..launch_logic import node_robot
+
+    if not robot:
+        return ""
+    try:
+        return node_robot(robot)[0]
+    except ValueError as exc:
+        raise BadInput(f"--robot {robot}: {exc}") from None
 
 
 def _overlay(args) -> str | None:
@@ -209,7 +228,7 @@ def cmd_trials(args) -> int:
             _need_ros(args.stack)
         overlay = _overlay(args) if args.stack in NAV2_STACKS else None
         settings.bags.mkdir(parents=True, exist_ok=True)
-        prepared = [prepare(c, args.stack, overlay, args.time_scale, settings.bags) for c in configs]
+        prepared = [prepare(c, args.stack, overlay, args.time_scale, settings.bags, settings.robot) for c in configs]
         try:
             run_trials(suite, prepared, settings)
         except StackStopped as exc:
@@ -271,11 +290,13 @@ def cmd_search(args) -> int:
         _need_ros(args.stack)
     settings.bags.mkdir(parents=True, exist_ok=True)
     prepared = prepare(config, args.stack, _overlay(args) if args.stack in NAV2_STACKS else None, args.time_scale,
-                       settings.bags)
+                       settings.bags, settings.robot)
     record.parent.mkdir(parents=True, exist_ok=True)
     record.write_text(json.dumps(run_config(problem, search_settings, {"mode": args.mode, "stack": args.stack,
                                                                       "params": prepared.record(), "hours": args.hours,
-                                                                      "time_scale": args.time_scale}),
+                                                                      "time_scale": args.time_scale,
+                                                                      **({"robot": settings.robot} if settings.robot
+                                                                         else {})}),
                                  indent=1, default=str) + "\n")
     print(f"search: {args.algorithm} ({args.mode}), seed {args.seed}, {args.hours:g} h of the stack at time scale "
           f"{args.time_scale:g}; rows to {results}, its settings to {record}")

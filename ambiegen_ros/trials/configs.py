@@ -169,8 +169,28 @@ def merged(config: StackConfig, stack: str, overlay: str | None, time_scale: flo
         raise BadInput(str(exc)) from None
 
 
-def prepare(config: StackConfig, stack: str, overlay: str | None, time_scale: float, out_dir: Path) -> Prepared:
-    """Merge, write (once per content, never over another file) and describe one configuration."""
+def with_stack_robot(config: StackConfig, stack: str, params: dict, robot: str) -> dict:
+    """The params with the robot's body and limits (``launch_logic.campaign_robot``, as the Nav2
+    campaign launch does), once the params' controller is known to drive it; our ND driver turns
+    in place, so no car. A refusal is one line naming the configuration and the field."""
+    from ..launch_logic import campaign_robot, node_robot
+
+    try:
+        if stack in NAV2_STACKS:
+            return campaign_robot(robot, params)[1]
+        profile = node_robot(robot)[1]
+    except ValueError as exc:
+        raise BadInput(f"--params {config.label} with --robot {robot}: {exc}") from None
+    if stack == "nd" and profile.drive == "ackermann":
+        raise BadInput(f"--params {config.label} with --robot {robot}: drive.kind: our ND driver turns in place: it "
+                       f"cannot drive the Ackermann robot {profile.name} (a Nav2 stack with a car-like controller can)")
+    return params
+
+
+def prepare(config: StackConfig, stack: str, overlay: str | None, time_scale: float, out_dir: Path,
+            robot: str = "") -> Prepared:
+    """Merge, write (once per content, never over another file) and describe one configuration;
+    ``robot`` (a profile, '' = the Pioneer) is in its params and its digest."""
     from ..nav2_params import top_speed, write_params
 
     if stack in NAV2_STACKS and not config.files:
@@ -181,13 +201,17 @@ def prepare(config: StackConfig, stack: str, overlay: str | None, time_scale: fl
         from .trees import with_tree
 
         params, _ = with_tree(params, trees, out_dir, config.label)
-    digest = hashlib.sha1(json.dumps(params, sort_keys=True, default=str).encode()).hexdigest()[:12]
+    if robot:
+        params = with_stack_robot(config, stack, params, robot)
+    content = [params, robot] if robot else params  # a label run on another robot is refused, never mixed
+    digest = hashlib.sha1(json.dumps(content, sort_keys=True, default=str).encode()).hexdigest()[:12]
     path = None
     if params:
         path = Path(out_dir) / f"{config.label}.{digest}.params.yaml"
         if not path.exists():
             header = " + ".join(config.files) + (f" (+ {overlay} after the first)" if overlay and stack in NAV2_STACKS
-                                                  else "") + f", loop rates x {time_scale:g}"
+                                                  else "") + f", loop rates x {time_scale:g}" + (
+                f", robot {robot}" if robot else "")
             write_params(params, path, header)
     world = _flat(((params.get("robot_world") or {}).get("ros__parameters") or {}).get("sim") or {})
     bt = (params.get("bt_navigator") or {}).get("ros__parameters") or {}
@@ -196,4 +220,4 @@ def prepare(config: StackConfig, stack: str, overlay: str | None, time_scale: fl
 
 
 __all__ = ["FIXES_KEY", "FIX_PREFIX", "NAV2_STACKS", "STACKS", "Prepared", "StackConfig", "fixes_dir", "merged", "parse_config",
-           "prepare", "resolve"]
+           "prepare", "resolve", "with_stack_robot"]

@@ -54,6 +54,8 @@ class TrialSettings:
     budget_s: float | None = None  # wall seconds of sending: no run starts after it (None: all runs)
     extra_env: dict[str, str] = field(default_factory=dict)
     our_transport: str | None = None  # dds: the world and the recorder on Cyclone DDS from PyPI (``lean_parts``)
+    robot: str = ""  # the robot profile the world drives and the adapter judges, as the nodes take it
+    # (``launch_logic.node_robot``: a shipped name or an absolute path; '': Stage's Pioneer)
 
     def __post_init__(self) -> None:
         if self.start_timeout is None:
@@ -82,6 +84,7 @@ def row_of(outcome: Any, entry: Entry, suite: Suite, prepared: Prepared, setting
     traj = outcome.trajectory
     return {
         **prepared.record(), "stack": settings.stack, "time_scale": settings.time_scale, "seed": settings.seed,
+        **({"robot": settings.robot} if settings.robot else {}),  # '' (the Pioneer): rows as before issue 69
         "scenario_name": entry.name, "key": entry.key, "repeat": repeat, "scenario": entry.scenario,
         "problem": suite.problem, "problem_config": suite.problem_config,
         "verdict": outcome.verdict, "failure_kind": outcome.failure_kind, "failed": bool(outcome.failed),
@@ -178,7 +181,8 @@ def _run_configuration(suite: Suite, p: Prepared, todo: list[tuple[int, Entry]],
     queue: list[tuple[Entry, dict]] = [(entry, {}) for _, entry in todo]
     feed = feed or Feed()
     with StackSession(settings, suite, p, say, injector) as session:
-        say(f"[{label}] stack {settings.stack}, params {p.path or '(defaults)'}; bag {session.bag}")
+        say(f"[{label}] stack {settings.stack}" + (f", robot {settings.robot}" if settings.robot else "")
+            + f", params {p.path or '(defaults)'}; bag {session.bag}")
         if not session.ready():
             raise StackStopped(f"[{label}] the stack's nodes did not come up in {settings.ready_timeout:.0f} s "
                                f"(logs: {session.dir / 'logs'})")

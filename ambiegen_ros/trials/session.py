@@ -141,6 +141,8 @@ def stack_nodes(settings: Any, prepared: Prepared, problem_file: Path, bag: Path
             node.params_files = files + [f for f in node.params_files if f not in files]
         if node.executable == "robot_world" and settings.fault_speed is not None:
             node.parameters["sim.contact_fault_speed"] = settings.fault_speed
+        if node.executable in ("robot_world", "sut_adapter") and getattr(settings, "robot", ""):
+            node.parameters["robot_profile"] = settings.robot  # the world drives it, the adapter judges it
         if node.executable == "sut_adapter":
             node.parameters["min_result_subscribers"] = 2  # the runner and the recorder
             if settings.fault_speed is not None:
