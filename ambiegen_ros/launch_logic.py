@@ -285,6 +285,77 @@ def nd_stack(seed: int, tag: str, profile: str | None, config_file: str | None) 
     ]
 
 
+PLANNER_NODES = (  # (node name, package, executable): Nav2's planner alone (``--stack planner``, issue 68)
+    ("planner_server", "nav2_planner", "planner_server"),
+    ("smoother_server", "nav2_smoother", "smoother_server"),
+    ("lifecycle_manager_planner", "nav2_lifecycle_manager", "lifecycle_manager"),
+)
+PLANNER_PLUGINS = {  # a planner_server plugin -> its rules in ambiegen_ros/sims/plans/rules.py
+    "nav2_navfn_planner/NavfnPlanner": "navfn", "nav2_navfn_planner::NavfnPlanner": "navfn",
+    "nav2_smac_planner/SmacPlanner2D": "smac_2d", "nav2_smac_planner::SmacPlanner2D": "smac_2d",
+    "nav2_smac_planner/SmacPlannerHybrid": "smac_hybrid", "nav2_smac_planner::SmacPlannerHybrid": "smac_hybrid",
+    "nav2_smac_planner/SmacPlannerLattice": "smac_lattice", "nav2_smac_planner::SmacPlannerLattice": "smac_lattice",
+    "nav2_theta_star_planner/ThetaStarPlanner": "theta_star",
+    "nav2_theta_star_planner::ThetaStarPlanner": "theta_star",
+}
+PLANNER_RULE_KEYS = {  # the plugin's params the rules take (rules.py's argument names)
+    "navfn": ("tolerance", "allow_unknown"), "smac_2d": ("tolerance", "allow_unknown", "max_planning_time"),
+    "theta_star": ("allow_unknown",),
+    "smac_hybrid": ("tolerance", "allow_unknown", "max_planning_time", "minimum_turning_radius"),
+    "smac_lattice": ("tolerance", "allow_unknown", "max_planning_time", "allow_reverse_expansion"),
+}
+PLANNER_TOPICS = ("/map", "/tf_static", "/plan", "/global_costmap/costmap")
+"""What a planner stack records besides the AmbieGen topics: the map asked, the costmap the planner saw."""
+
+
+def planner_under_test(params: dict) -> tuple[str, str, str]:
+    """(planner_id, rules key, rules overrides ``key=value,...``) of the params' first planner plugin,
+    with the global costmap's ``robot_radius``; ``ValueError`` naming the field when it is none we judge."""
+    server = ((params.get("planner_server") or {}).get("ros__parameters")) or {}
+    ids = server.get("planner_plugins") or ["GridBased"]
+    planner_id = str(ids[0])
+    section = server.get(planner_id) or {}
+    plugin = str(section.get("plugin", ""))
+    key = PLANNER_PLUGINS.get(plugin)
+    if key is None:
+        raise ValueError(f"planner_server.{planner_id}.plugin: {plugin or 'none'!r} is no planner we judge "
+                         f"(known: {', '.join(sorted({p.replace('::', '/') for p in PLANNER_PLUGINS}))})")
+    rules = {name: section[name] for name in PLANNER_RULE_KEYS[key] if name in section}
+    if key == "smac_hybrid" and section.get("motion_model_for_search"):
+        rules["motion_model"] = section["motion_model_for_search"]
+    costmap = (((params.get("global_costmap") or {}).get("global_costmap") or {}).get("ros__parameters")) or {}
+    if "robot_radius" in costmap:
+        rules["robot_radius"] = costmap["robot_radius"]
+    text = ",".join(f"{k}={str(v).lower() if isinstance(v, bool) else v}" for k, v in rules.items())
+    return planner_id, key, text
+
+
+def planner_stack(params: dict, params_file: Path | None, tag: str, upsample: int, start_timeout: float,
+                  config_file: str, profile: str) -> list[NodeSpec]:
+    """Nav2's ``planner_server`` (and ``smoother_server`` when the params have one) under their own
+    lifecycle manager, each by ``ros2 run`` with the user's params on wall time (no world, no /clock,
+    no controller), and ``sut_adapter`` in ``goal_mode:=plan``, which publishes each scenario's map,
+    the static transforms map -> odom -> base_link the global costmap needs, and asks the planner."""
+    planner_id, rules, overrides = planner_under_test(params)
+    smooth = "smoother_server" in params
+    names = ["planner_server"] + (["smoother_server"] if smooth else [])
+    files = [str(params_file)] if params_file else []
+    nodes = []
+    for name, package, executable in PLANNER_NODES:
+        if name in names:
+            nodes.append(NodeSpec(name, executable, {"use_sim_time": False}, package=package, params_files=files))
+        elif name.startswith("lifecycle_manager"):
+            nodes.append(NodeSpec(name, executable, {"use_sim_time": False, "autostart": True, "node_names": names},
+                                  package=package))
+    adapter = NodeSpec("sut_adapter", "sut_adapter", {
+        "problem": "robot", "worker_id": f"planner_{tag}", "goal_mode": "plan", "map_upsample": upsample,
+        "planner_plugin": rules, "planner_rules": overrides, "planner_id": planner_id, "smooth": smooth,
+        "plan_lifecycle_nodes": ",".join(names), "settle_time": 0.0, "tick_period": 0.01,
+        "start_timeout": start_timeout, "config_file": config_file, "profile": profile,
+        "min_result_subscribers": 2})
+    return [*nodes, adapter]
+
+
 def campaign_part(value: str) -> str:
     """``all``, ``generator`` or ``stack<i>`` (i >= 0): what one host of a campaign runs."""
     if value in ("all", "generator") or re.fullmatch(r"stack(0|[1-9][0-9]*)", value):

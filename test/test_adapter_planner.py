@@ -224,3 +224,35 @@ def test_a_planner_that_never_answers_is_hung_and_a_costmap_that_never_comes_is_
     other.send_goal(job2)
     assert other.step(job2, RunView(other.since + 25.0, None, False, lambda: False)) == DECIDED
     assert job2.judge.outcome().failure_kind == "error" and "did not show" in job2.judge.outcome().detail
+
+
+# --- the planner stack's node set (--stack planner) -------------------------------------------------
+def test_the_planner_stack_runs_the_params_plugin_under_its_rules_and_refuses_one_we_cannot_judge(tmp_path):
+    from ambiegen_ros.campaign import node_argv
+    from ambiegen_ros.launch_logic import planner_stack, planner_under_test
+    from ambiegen_ros.trials.configs import Prepared, StackConfig
+    from ambiegen_ros.trials.runner import TrialSettings
+    from ambiegen_ros.trials.session import stack_nodes
+
+    hybrid = {"planner_server": {"ros__parameters": {"planner_plugins": ["Hy"], "Hy": {
+        "plugin": "nav2_smac_planner::SmacPlannerHybrid", "motion_model_for_search": "REEDS_SHEPP",
+        "minimum_turning_radius": 0.3, "tolerance": 0.2}}},
+        "global_costmap": {"global_costmap": {"ros__parameters": {"robot_radius": 0.3}}}, "smoother_server": {}}
+    planner_id, key, text = planner_under_test(hybrid)
+    r = planner_rules(key, parse_rules(text))
+    assert (planner_id, r.name, r.reversing, r.min_turning_radius, r.robot_radius) == ("Hy", "smac_hybrid", True,
+                                                                                      0.3, 0.3)
+    nodes = {n.name: n for n in planner_stack(hybrid, tmp_path / "p.yaml", "t1", 5, 30.0, "prob.yaml", "")}
+    assert set(nodes) == {"planner_server", "smoother_server", "lifecycle_manager_planner", "sut_adapter"}
+    assert nodes["lifecycle_manager_planner"].parameters["node_names"] == ["planner_server", "smoother_server"]
+    assert node_argv(nodes["planner_server"])[:4] == ["ros2", "run", "nav2_planner", "planner_server"]
+    assert all(n.parameters["use_sim_time"] is False for n in nodes.values() if n.package != "ambiegen_ros")
+    adapter = nodes["sut_adapter"].parameters
+    assert (adapter["goal_mode"], adapter["planner_id"], adapter["smooth"]) == ("plan", "Hy", True)
+    with pytest.raises(ValueError, match="planner_server.GridBased.plugin"):
+        planner_under_test({"planner_server": {"ros__parameters": {"GridBased": {"plugin": "my/Planner"}}}})
+    settings = TrialSettings(stack="planner", results=tmp_path / "r.jsonl", bags=tmp_path)
+    prepared = Prepared(StackConfig("j", ()), hybrid, tmp_path / "p.yaml", "d", {}, None, None)
+    made = stack_nodes(settings, prepared, tmp_path / "problem.yaml", tmp_path / "b.mcap", "t1")
+    assert [n.name for n in made][0] == "recorder" and "robot_world" not in [n.name for n in made]
+    assert "/global_costmap/costmap" in made[0].parameters["extra_topics"]

@@ -17,8 +17,11 @@ from .common import BadInput
 
 STACK_HELP = ("nd: our Nearness Diagram robot on Nav2's topics (no ROS needed); bringup: nav2_bringup's "
               "navigation_launch.py with the params; ours: the minimum Nav2 (controller, planner, behaviours, BT "
-              "navigator) with the params; external: your Nav2, which you start when told (Nav2 stacks need a "
-              "sourced ROS 2 Jazzy)")
+              "navigator) with the params; external: your Nav2, which you start when told; planner: Nav2's "
+              "planner_server and smoother_server (and a lifecycle manager) alone, by ros2 run with the params on "
+              "wall time, no world or controller: the adapter publishes each map and the static TF map -> odom -> "
+              "base_link, asks compute_path_to_pose, and judges the path on the costmap it reads back "
+              "(docs/planner_oracles.md; no --overlay unless given) (Nav2 stacks need a sourced ROS 2 Jazzy)")
 
 
 def _common(p: argparse.ArgumentParser, many: bool, search: bool = False) -> None:
@@ -173,8 +176,8 @@ def _robot(robot: str) -> str:
 def _overlay(args) -> str | None:
     from ..nav2_params import OVERLAY_FILE, package_file
 
-    if args.overlay.lower() == "none":
-        return None
+    if args.overlay.lower() == "none" or (args.stack == "planner" and not args.overlay):
+        return None  # the planner stack runs Jazzy's (the user's) footprint and frames, not our world's
     overlay = args.overlay or package_file(*OVERLAY_FILE)
     if not overlay or not Path(overlay).is_file():
         raise BadInput(f"--overlay {args.overlay or '/'.join(OVERLAY_FILE)}: no such file")

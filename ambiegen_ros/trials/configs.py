@@ -36,7 +36,7 @@ FIX_PREFIX = "fix:"
 FIXES_KEY = "ambiegen_fixes"  # a fix made of the package's fixes, by name
 FIXES_DIR = ("config", "nav2", "fixes")  # under the package's share dir (or the repo)
 LABEL = re.compile(r"[A-Za-z0-9_.+-]{1,60}")
-NAV2_STACKS = ("bringup", "ours", "external")
+NAV2_STACKS = ("bringup", "ours", "external", "planner")  # planner: planner_server alone (launch_logic.planner_stack)
 STACKS = ("nd",) + NAV2_STACKS
 BT_KEYS = ("default_nav_to_pose_bt_xml", "default_nav_through_poses_bt_xml")
 

@@ -121,14 +121,23 @@ def lean_parts(settings: Any) -> tuple[str, ...]:
 def stack_nodes(settings: Any, prepared: Prepared, problem_file: Path, bag: Path, tag: str) -> list:
     """The node set of one configuration: recorder, world, stack, adapter (``launch_logic.NodeSpec``)."""
     from ..campaign import STACK_TOPICS
-    from ..launch_logic import NAV2_TOPICS, NodeSpec, nav2_stack, nd_stack
+    from ..launch_logic import NAV2_TOPICS, PLANNER_TOPICS, NodeSpec, nav2_stack, nd_stack, planner_stack
     from ..ros import topics
 
     files = [str(prepared.path)] if prepared.path else []
     nav2 = settings.stack in NAV2_STACKS
-    recorded = (NAV2_TOPICS if nav2 else STACK_TOPICS) + (topics.STACK_EVENTS,)
+    planner = settings.stack == "planner"  # Nav2's planner_server alone, asked by the adapter (issue 68)
+    recorded = (PLANNER_TOPICS if planner else NAV2_TOPICS if nav2 else STACK_TOPICS) + (topics.STACK_EVENTS,)
     recorder = NodeSpec("recorder", "recorder", {"output": str(bag), "extra_topics": ",".join(recorded)})
-    if nav2:
+    if planner:
+        try:
+            nodes = planner_stack(prepared.params, prepared.path, tag, settings.map_upsample, settings.start_timeout,
+                                  str(problem_file), "")
+        except ValueError as exc:
+            from ..core.errors import BadInput
+
+            raise BadInput(f"--params {prepared.config.label}: {exc}") from None
+    elif nav2:
         start = settings.start_timeout  # the user's, or the stack's default (``TrialSettings``)
         nodes = nav2_stack("", settings.stack, prepared.params, prepared.path, settings.seed, tag, settings.time_scale,
                            settings.map_upsample, start, settings.early_verdicts, prepared.speed, str(problem_file), "")

@@ -233,7 +233,12 @@ def main() -> int:
         interfaces.ensure(node._registry, srv)
     interfaces.ensure(node._registry, ACTION)
     state = node._registry.new("lifecycle_msgs/msg/State", id=3, label="active")
-    role = ROLES.get(name, Idle)(node)
+    if name == "planner_server" and os.environ.get("FAKE_NAV2_PLANNER"):  # --stack planner: fake_planner_dds.py
+        from fake_planner_dds import PathPlanner
+
+        role = PathPlanner(node, os.environ["FAKE_NAV2_PLANNER"])
+    else:
+        role = ROLES.get(name, Idle)(node)
     services = role.services + [FakeService(node, GET_STATE, f"/{name}/get_state",
                                             answer(node, GET_STATE, current_state=state))]
     stop: list[int] = []

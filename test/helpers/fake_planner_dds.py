@@ -1,0 +1,135 @@
+"""A FAKE of Nav2's planner_server (not Nav2): what the planner judge (``goal_mode:=plan``) needs of one.
+
+``fake_nav2_dds.py`` plays ``planner_server`` with this role when ``FAKE_NAV2_PLANNER`` is set
+(``straight`` or ``refuse``), as ``--stack planner`` starts it through the fake ``ros2``; run alone
+(``python fake_planner_dds.py MODE``) it is a node named planner_server. It is no planner:
+
+* ``/map`` in (reliable, transient local), ``/global_costmap/costmap`` out: the map's occupied cells
+  as 100 and the cells within ``INFLATE_CELLS`` of one as 99 (a crude inflation: a square, not
+  Nav2's brushfire), stamped when made, latched like Nav2's;
+* ``compute_path_to_pose``: ``straight`` answers a straight line of poses from the goal's start to
+  its goal, whatever lies between (so a wall between them is the oracle's FAIL(collision));
+  ``refuse`` answers NO_VALID_PATH (208) to every goal (so a reachable goal is a missed path);
+* the status and feedback topics are offered (an action server is up only with them) but stay silent:
+  the adapter reads only SendGoal and GetResult.
+"""
+from __future__ import annotations
+
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[2]
+for extra in (REPO, REPO / "test" / "ros"):
+    if str(extra) not in sys.path:
+        sys.path.insert(0, str(extra))
+
+from ambiegen_ros.ros import conversions, interfaces  # noqa: E402
+from ambiegen_ros.ros.qos import LATCHED  # noqa: E402
+from ambiegen_ros.ros.transport.dds_services import FEEDBACK_QOS, STATUS_QOS  # noqa: E402
+from test_dds_services import FakeService  # noqa: E402  (rmw_cyclonedds_cpp's service side)
+
+PLAN = "nav2_msgs/action/ComputePathToPose"
+CANCEL = "action_msgs/srv/CancelGoal"
+INFLATE_CELLS = 2
+NO_VALID_PATH, SUCCEEDED, ABORTED = 208, 4, 6
+
+
+def inflated(occupied: np.ndarray, cells: int = INFLATE_CELLS) -> np.ndarray:
+    """OccupancyGrid values of a costmap: 100 on occupied cells, 99 within ``cells`` (a square) of one."""
+    near = occupied.copy()
+    h, w = occupied.shape
+    for dy in range(-cells, cells + 1):
+        for dx in range(-cells, cells + 1):
+            shifted = np.zeros_like(occupied)
+            shifted[max(dy, 0):h + min(dy, 0), max(dx, 0):w + min(dx, 0)] = \
+                occupied[max(-dy, 0):h + min(-dy, 0), max(-dx, 0):w + min(-dx, 0)]
+            near |= shifted
+    return np.where(occupied, 100, np.where(near, 99, 0)).astype(np.int8)
+
+
+class PathPlanner:
+    """planner_server's costmap and action, as the module docstring says."""
+
+    def __init__(self, node, mode: str = "straight"):
+        self.node, self.reg, self.mode = node, node._registry, mode
+        interfaces.ensure(self.reg, PLAN)
+        interfaces.ensure(self.reg, CANCEL)
+        base = "/compute_path_to_pose/_action/"
+        self.services = [FakeService(node, PLAN + "_SendGoal", base + "send_goal", self.on_goal),
+                         FakeService(node, PLAN + "_GetResult", base + "get_result", self.on_result),
+                         FakeService(node, CANCEL, base + "cancel_goal", lambda r, t: self.reg.new(CANCEL + "_Response"))]
+        self.offered = [node.create_publisher(PLAN + "_FeedbackMessage", base + "feedback", FEEDBACK_QOS),
+                        node.create_publisher("action_msgs/msg/GoalStatusArray", base + "status", STATUS_QOS)]
+        self.costmap = node.create_publisher("nav_msgs/msg/OccupancyGrid", "/global_costmap/costmap", LATCHED)
+        node.create_subscription("nav_msgs/msg/OccupancyGrid", "/map", self.on_map, LATCHED)
+        self.results: dict[bytes, object] = {}
+        self.waiting: dict[bytes, object] = {}
+        self.maps = 0
+
+    def on_map(self, msg) -> None:
+        info = msg.info
+        occupied = np.asarray(msg.data, dtype=np.int16).reshape(int(info.height), int(info.width)) >= 100
+        make = self.node.new_message
+        self.maps += 1
+        self.costmap.publish(make("nav_msgs/msg/OccupancyGrid", header=conversions.header(make, self.node.now_ns()),
+                                  info=info, data=inflated(occupied).reshape(-1)))
+        print(f"costmap {self.maps}: {info.width} x {info.height}", flush=True)
+
+    def on_goal(self, request, _token):
+        g, s = request.goal.goal.pose.position, request.goal.start.pose.position
+        make = self.node.new_message
+        if self.mode == "refuse":
+            result = self.reg.new(PLAN + "_Result", error_code=NO_VALID_PATH, error_msg="fake: no valid path")
+            status = ABORTED
+        else:
+            n = max(2, int(np.hypot(g.x - s.x, g.y - s.y) / 0.05) + 1)
+            points = np.linspace([s.x, s.y], [g.x, g.y], n)
+            result = self.reg.new(PLAN + "_Result", path=conversions.path(make, self.node.now_ns(), points))
+            status = SUCCEEDED
+        key = bytes(bytearray(request.goal_id.uuid))
+        self.results[key] = self.reg.new(PLAN + "_GetResult_Response", status=status, result=result)
+        print(f"plan {self.mode}: ({s.x:.2f}, {s.y:.2f}) -> ({g.x:.2f}, {g.y:.2f})", flush=True)
+        return self.reg.new(PLAN + "_SendGoal_Response", accepted=True)
+
+    def on_result(self, request, token):
+        key = bytes(bytearray(request.goal_id.uuid))
+        if key in self.results:
+            return self.results.pop(key)
+        self.waiting[key] = token
+        return None
+
+    def poll(self, now: float) -> None:
+        for key in [k for k in self.waiting if k in self.results]:
+            self.services[1].respond(self.waiting.pop(key), self.results.pop(key))
+
+
+def main() -> int:
+    """Alone: a node named planner_server that also says it is active."""
+    from ambiegen_ros.ros import transport
+
+    node = transport.create_node("planner_server", argv=[], backend="dds")
+    interfaces.ensure(node._registry, "lifecycle_msgs/srv/GetState")
+    role = PathPlanner(node, sys.argv[1] if len(sys.argv) > 1 else os.environ.get("FAKE_NAV2_PLANNER", "straight"))
+    state = node._registry.new("lifecycle_msgs/msg/State", id=3, label="active")
+    services = role.services + [FakeService(node, "lifecycle_msgs/srv/GetState", "/planner_server/get_state",
+                                            lambda r, t: node._registry.new("lifecycle_msgs/srv/GetState_Response",
+                                                                            current_state=state))]
+    print("planner_server ready (a fake)", flush=True)
+    try:
+        while True:
+            node.spin_once(0.02)
+            for service in services:
+                service.poll()
+            role.poll(time.monotonic())
+    except KeyboardInterrupt:
+        pass
+    node.shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

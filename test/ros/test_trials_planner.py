@@ -1,0 +1,86 @@
+"""``--stack planner`` end to end on real DDS, against a FAKE planner_server (issue 68).
+
+``run_trials`` starts what ``ambiegen rerun --stack planner`` starts: the recorder, our adapter in
+``goal_mode:=plan`` and, through a fake ``ros2`` on PATH, the planner stack's nodes; the fake
+planner (test/helpers/fake_planner_dds.py, not Nav2) builds its costmap from our /map and answers
+a straight line from start to goal (``straight``) or NO_VALID_PATH to every goal (``refuse``). Our
+oracle must then call a line through a wall FAIL(collision), a line over a clear floor PASS, and a
+refusal of a reachable goal a missed path with the reference planner's certificate.
+"""
+from __future__ import annotations
+
+import copy
+import json
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+for extra in (REPO / "test" / "sims",):
+    if str(extra) not in sys.path:
+        sys.path.insert(0, str(extra))
+
+from ambiegen_ros.ros.transport import dds_backend  # noqa: E402
+from ambiegen_ros.trials.configs import StackConfig, prepare  # noqa: E402
+from ambiegen_ros.trials.rows import TrialLog  # noqa: E402
+from ambiegen_ros.trials.runner import TrialSettings, run_trials  # noqa: E402
+from ambiegen_ros.trials.suite import load_suite  # noqa: E402
+from test_full_models import easy_robot_elements  # noqa: E402
+
+pytestmark = pytest.mark.skipif(os.environ.get("AMBIEGEN_TRANSPORT", "auto") == "rclpy"
+                                or not dds_backend.is_available(), reason="these tests drive the DDS backend")
+CONFIG = str(REPO / "config" / "robot.yaml")
+PARAMS = REPO / "config" / "nav2" / "pioneer_navfn_dwb.yaml"  # NavFn (GridBased); no smoother_server
+FAKE_ROS2 = REPO / "test" / "helpers" / "fake_nav2"
+
+
+def scenarios() -> dict[str, dict]:
+    """Start (1.5, 1.5), goal (48.5, 48.5): ``clear`` leaves the diagonal free; ``wall`` puts a
+    horizontal wall of 5 m across it in row 25 (a path around it exists)."""
+    clear = {"problem": "robot", "elements": easy_robot_elements()}
+    wall = copy.deepcopy(clear)
+    wall["elements"][24] = {"type": "horizontal", "size": 5, "position": 25}
+    return {"clear": clear, "wall": wall}
+
+
+def run_planner_stack(tmp_path: Path, ros_domain: int, monkeypatch, mode: str, names: tuple[str, ...]) -> list[dict]:
+    for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE"):  # the session's driver sets them here
+        was = os.environ.get(key)
+        monkeypatch.setenv(key, was or "0")
+        if was is None:
+            monkeypatch.delenv(key)
+    cases = scenarios()
+    suite_file = tmp_path / "suite.json"
+    suite_file.write_text(json.dumps({"suite": [{"scenario": cases[n], "name": n} for n in names]}))
+    results, bags = tmp_path / "trials.jsonl", tmp_path / "bags"
+    bags.mkdir()
+    env = {"PATH": f"{FAKE_ROS2}{os.pathsep}{os.environ['PATH']}", "FAKE_ROS2_PYTHON": sys.executable,
+           "FAKE_NAV2_PLANNER": mode, "AMBIEGEN_TRANSPORT": "dds"}
+    settings = TrialSettings(stack="planner", results=results, bags=bags, repeat=1, domain_id=ros_domain,
+                             start_timeout=120.0, ready_timeout=120.0, extra_env=env)
+    prepared = prepare(StackConfig("fake", (str(PARAMS),)), "planner", None, 1.0, bags)
+    said: list[str] = []
+    run_trials(load_suite([str(suite_file)], CONFIG), [prepared], settings, say=said.append)
+    rows = TrialLog(results).rows()
+    assert len(rows) == len(names), "\n".join(said)
+    return rows
+
+
+def test_a_straight_line_through_a_wall_fails_by_collision_and_over_a_clear_floor_passes(tmp_path, ros_domain,
+                                                                                          monkeypatch):
+    rows = run_planner_stack(tmp_path, ros_domain, monkeypatch, "straight", ("clear", "wall"))
+    by_name = {r["scenario_name"]: r for r in rows}
+    assert by_name["clear"]["failure_kind"] == "none", by_name["clear"]["detail"]
+    wall = by_name["wall"]
+    assert wall["failure_kind"] == "collision" and wall["detail"].startswith("collision: pose "), wall["detail"]
+    logs = Path(rows[0]["bag"]).parent / "logs"
+    planner_log = (logs / "planner_server.log").read_text()
+    assert planner_log.count("plan straight:") == 2 and "costmap 2:" in planner_log  # one map, one goal each
+
+
+def test_a_refusal_where_a_path_exists_is_a_missed_path_with_the_certificate(tmp_path, ros_domain, monkeypatch):
+    (row,) = run_planner_stack(tmp_path, ros_domain, monkeypatch, "refuse", ("wall",))
+    assert row["failure_kind"] == "requirement" and row["detail"].startswith("missed_path: "), row["detail"]
+    assert "error 208" in row["detail"] and "the reference planner found" in row["detail"]
