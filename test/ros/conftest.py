@@ -1,6 +1,7 @@
 """Fixtures of the process tests: ``graph`` (node subprocesses + a driver node on the test's own domain),
 ``dds_env`` (in-process DDS nodes, for the transport tests in and between processes) and ``nodes_factory``,
 ``test_node`` (node subprocesses of a test, and a node in this process: the node tests)."""
+import os
 import sys
 from pathlib import Path
 
@@ -30,3 +31,15 @@ def dds_env(monkeypatch):
     yield make
     for n in made:
         n.shutdown()
+
+
+@pytest.fixture
+def session_env(monkeypatch):
+    """A trials session's driver in this process sets ROS_DOMAIN_ID and ROS_AUTOMATIC_DISCOVERY_RANGE
+    in ``os.environ``: both as they were after the test."""
+    for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE"):
+        was = os.environ.get(key)
+        monkeypatch.setenv(key, was or "0")
+        if was is None:
+            monkeypatch.delenv(key)
+    return monkeypatch

@@ -36,12 +36,7 @@ pytestmark = pytest.mark.skipif(os.environ.get("AMBIEGEN_TRANSPORT", "auto") == 
                                 or not dds_backend.is_available(), reason="these tests drive the DDS backend")
 
 
-def test_a_starved_fake_nav2_abort_is_rerun_as_starved_and_never_a_failure(tmp_path, ros_domain, monkeypatch):
-    for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE"):  # the session's driver sets them here
-        was = os.environ.get(key)
-        monkeypatch.setenv(key, was or "0")
-        if was is None:
-            monkeypatch.delenv(key)
+def test_a_starved_fake_nav2_abort_is_rerun_as_starved_and_never_a_failure(tmp_path, ros_domain, session_env):
     suite_file = tmp_path / "suite.json"
     suite_file.write_text(json.dumps({"suite": [{"scenario": CASES["cases"][0]["scenario"], "name": "case0"}]}))
     results, bags = tmp_path / "trials.jsonl", tmp_path / "bags"

@@ -43,15 +43,10 @@ FAKE_ROS2 = REPO / "test" / "helpers" / "fake_nav2"
 HANG_AFTER = 4.0  # beyond the adapter's crash_grace (2 s), in which a run that Nav2 ended still waits
 
 
-def run_on_fake_nav2(tmp_path: Path, ros_domain: int, monkeypatch, controller: str, patience_s: float,
+def run_on_fake_nav2(tmp_path: Path, ros_domain: int, controller: str, patience_s: float,
                      inject: tuple[str, ...] = ()) -> tuple[list[dict], Path, list[dict]]:
     """One scenario (a pass on our robot) on the fake Nav2, run as ``ambiegen rerun --stack ours``
     runs it on Jazzy's bringup: (rows, the session's folder, its events)."""
-    for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE"):  # the session's driver sets them here:
-        was = os.environ.get(key)  # as they were, after the test
-        monkeypatch.setenv(key, was or "0")
-        if was is None:
-            monkeypatch.delenv(key)
     suite_file = tmp_path / "suite.json"
     suite_file.write_text(json.dumps({"suite": [{"scenario": CASES["cases"][0]["scenario"], "name": "case0"}]}))
     results, bags = tmp_path / "trials.jsonl", tmp_path / "bags"
@@ -78,11 +73,11 @@ def held_for(log: Path) -> list[float]:
             if line.startswith("aborted: no command for")]
 
 
-def test_a_held_robot_with_live_feedback_is_no_crash(tmp_path, ros_domain, monkeypatch):
+def test_a_held_robot_with_live_feedback_is_no_crash(tmp_path, ros_domain, session_env):
     """The controller stops commanding once the robot moved a little (held), the navigator's
     feedback goes on, and the navigator ends the goal itself (105) after 2 x hang_after without a
     command: the run is the stack's result, no death, no restart."""
-    rows, folder, events = run_on_fake_nav2(tmp_path, ros_domain, monkeypatch, "hold", 2 * HANG_AFTER)
+    rows, folder, events = run_on_fake_nav2(tmp_path, ros_domain, "hold", 2 * HANG_AFTER)
     assert len(rows) == 1, [r["detail"] for r in rows]
     row = rows[0]
     assert row["failure_kind"] != "sut_crashed" and "stopped" not in row["detail"], row["detail"]
@@ -98,11 +93,11 @@ def test_a_held_robot_with_live_feedback_is_no_crash(tmp_path, ros_domain, monke
     assert commands > 0
 
 
-def test_a_stopped_controller_is_a_crash_while_the_navigator_still_talks(tmp_path, ros_domain, monkeypatch):
+def test_a_stopped_controller_is_a_crash_while_the_navigator_still_talks(tmp_path, ros_domain, session_env):
     """SIGSTOP of the controller once the robot moves: FAIL(sut_crashed) naming it, one death (the
     scheduling rule leaves a stopped process to the watch that names it so); the rerun on a fresh
     stack is held, not hung, and ends by the navigator's own result."""
-    rows, _, events = run_on_fake_nav2(tmp_path, ros_domain, monkeypatch, "hold", 2 * HANG_AFTER,
+    rows, _, events = run_on_fake_nav2(tmp_path, ros_domain, "hold", 2 * HANG_AFTER,
                                        inject=("controller_server:SIGSTOP@1",))
     assert [r["failure_kind"] for r in rows][:1] == ["sut_crashed"], [r["detail"] for r in rows]
     assert "controller_server stopped (hung: SIGSTOP)" in rows[0]["detail"], rows[0]["detail"]
@@ -113,11 +108,11 @@ def test_a_stopped_controller_is_a_crash_while_the_navigator_still_talks(tmp_pat
 
 
 def test_a_controller_that_stops_being_scheduled_is_a_crash_whatever_the_topics_say(tmp_path, ros_domain,
-                                                                                     monkeypatch):
+                                                                                     session_env):
     """The controller's process freezes (not a signal's stop: state S, no CPU), the navigator's
     feedback goes on and it never gives up: only the scheduling rule can end the run, as the
     stack's crash, and on the fresh stack the same crash comes back."""
-    rows, _, events = run_on_fake_nav2(tmp_path, ros_domain, monkeypatch, "freeze", 0.0)
+    rows, _, events = run_on_fake_nav2(tmp_path, ros_domain, "freeze", 0.0)
     assert [r["failure_kind"] for r in rows] == ["sut_crashed", "sut_crashed"], [r["detail"] for r in rows]
     assert all("controller_server stopped being scheduled (hung: no CPU time for" in r["detail"] for r in rows), \
         [r["detail"] for r in rows]

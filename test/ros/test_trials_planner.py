@@ -45,12 +45,7 @@ def scenarios() -> dict[str, dict]:
     return {"clear": clear, "wall": wall}
 
 
-def run_planner_stack(tmp_path: Path, ros_domain: int, monkeypatch, mode: str, names: tuple[str, ...]) -> list[dict]:
-    for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE"):  # the session's driver sets them here
-        was = os.environ.get(key)
-        monkeypatch.setenv(key, was or "0")
-        if was is None:
-            monkeypatch.delenv(key)
+def run_planner_stack(tmp_path: Path, ros_domain: int, mode: str, names: tuple[str, ...]) -> list[dict]:
     cases = scenarios()
     suite_file = tmp_path / "suite.json"
     suite_file.write_text(json.dumps({"suite": [{"scenario": cases[n], "name": n} for n in names]}))
@@ -69,8 +64,8 @@ def run_planner_stack(tmp_path: Path, ros_domain: int, monkeypatch, mode: str, n
 
 
 def test_a_straight_line_through_a_wall_fails_by_collision_and_over_a_clear_floor_passes(tmp_path, ros_domain,
-                                                                                          monkeypatch):
-    rows = run_planner_stack(tmp_path, ros_domain, monkeypatch, "straight", ("clear", "wall"))
+                                                                                          session_env):
+    rows = run_planner_stack(tmp_path, ros_domain, "straight", ("clear", "wall"))
     by_name = {r["scenario_name"]: r for r in rows}
     assert by_name["clear"]["failure_kind"] == "none", by_name["clear"]["detail"]
     wall = by_name["wall"]
@@ -80,7 +75,7 @@ def test_a_straight_line_through_a_wall_fails_by_collision_and_over_a_clear_floo
     assert planner_log.count("plan straight:") == 2 and "costmap 2:" in planner_log  # one map, one goal each
 
 
-def test_a_refusal_where_a_path_exists_is_a_missed_path_with_the_certificate(tmp_path, ros_domain, monkeypatch):
-    (row,) = run_planner_stack(tmp_path, ros_domain, monkeypatch, "refuse", ("wall",))
+def test_a_refusal_where_a_path_exists_is_a_missed_path_with_the_certificate(tmp_path, ros_domain, session_env):
+    (row,) = run_planner_stack(tmp_path, ros_domain, "refuse", ("wall",))
     assert row["failure_kind"] == "requirement" and row["detail"].startswith("missed_path: "), row["detail"]
     assert "error 208" in row["detail"] and "the reference planner found" in row["detail"]
