@@ -52,6 +52,7 @@ class ScenarioJudge:
     SAMPLE_KEY: ClassVar[str] = "odom"  # the topic key of the samples
     SAMPLE_TYPE: ClassVar[str] = "nav_msgs/msg/Odometry"
     samples_are: ClassVar[str] = "odometry"  # in error details: "no odometry within 10 s"
+    certifies_itself: ClassVar[bool] = False  # True: its failures carry their own certificate, not the problem's reference
 
     def __init__(self, node: Any, settings: Settings, oracle: Any, problem: Any):
         self.node, self.settings, self.oracle, self.problem = node, settings, oracle, problem
@@ -75,6 +76,10 @@ class ScenarioJudge:
     def missing(self) -> list[str]:
         """What else the stack has not shown yet (beyond subscribers and the sample publisher)."""
         return []
+
+    def with_timing(self, outcome: Any) -> Any:
+        """The run's timing record in its result (a judge that keeps one: ``robot_nav2``); as it is here."""
+        return outcome
 
     def begin(self, job: Any) -> None:
         """A new scenario is taken: forget the last one's state."""

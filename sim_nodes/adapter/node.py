@@ -421,10 +421,8 @@ class SutAdapter:
             outcome = self.mode.with_plans(outcome)
         outcome = with_give_up(outcome, self.order.streams.get("stall"), self.topics.get("stall"))
         outcome = nav2_rules.ours_or_the_stacks(outcome, self.ours_error_codes)
-        if self.nav2 is not None:  # did the stack get its computer? a starved run is no verdict (timing)
-            outcome = self.mode.with_timing(outcome)
-        certified = getattr(self.mode, "certifies_itself", False)  # the planner judge's own reference planner
-        if self.reference and outcome.failed and not certified:  # does the in-process reference pass it?
+        outcome = self.mode.with_timing(outcome)  # did the stack get its computer? a starved run is no verdict
+        if self.reference and outcome.failed and not self.mode.certifies_itself:  # does the reference pass it?
             budget = nav2_rules.budget_spent(outcome.failure_kind, job.judge.elapsed, self.goal_time_budget)
             outcome = reference.certify(outcome, reference.after(self.problem, job.scenario, self.oracle, outcome,
                                                                  budget=budget) or job.before)

@@ -242,6 +242,7 @@ def finish_on_a_stand_in(outcome, elapsed: float, error_code: int, budget: float
         nav2=SimpleNamespace(result={"status": "aborted", "error_code": error_code, "error_msg": ""}, handle=None,
                              recoveries=0, cancel=lambda: None),
         publish=lambda run_id, sid, out: published.append(out), idle=lambda: None,
+        mode=SimpleNamespace(with_timing=lambda out: out, certifies_itself=False),  # a judge with no timing record
         node=SimpleNamespace(logger=SimpleNamespace(info=lambda text: None)))
     SutAdapter.finish(stand_in, outcome)
     return published[0]
