@@ -57,9 +57,8 @@ def cmd_nav2_params(args: argparse.Namespace) -> int:
     print(f"controller{'s' * (len(plugins) != 1)}: {', '.join(plugins) or 'none named'}; top speed "
           + (f"{speed:g} m/s (the time limit divides routes by it)" if speed else "not found (the time limit uses 0.3 m/s)"))
     if profile is not None:
-        body = f"robot_radius {profile.radius:g} m" if profile.round else f"footprint {profile.nav2_footprint()}"
-        print(f"robot: {profile.name} ({profile.drive}; {body}; laser {profile.lasers[0].frame}); give robot_world and "
-              f"sut_adapter robot_profile:={args.robot} (the Nav2 campaign launch: robot_profile:={args.robot})")
+        print(f"{robot_summary(profile)}; give robot_world and sut_adapter robot_profile:={args.robot} (the Nav2 "
+              f"campaign launch: robot_profile:={args.robot})")
     for note in notes:
         print(f"note: {note}")
     print(f"start Nav2: ros2 launch nav2_bringup navigation_launch.py use_sim_time:=true params_file:={out}")
@@ -109,9 +108,7 @@ def cmd_robot_profile(args: argparse.Namespace) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("".join(f"# {line}\n" for line in header) + yaml.safe_dump(data, sort_keys=False))
     print(out)
-    body = f"radius {profile.radius:g} m" if profile.round else f"polygon of {len(profile.polygon or ())} vertices"
-    print(f"robot {profile.name}: {profile.drive}, {body}, {profile.max_speed[0]:g} m/s, laser {profile.lasers[0].frame} "
-          f"at ({profile.lasers[0].x:g}, {profile.lasers[0].y:g})")
+    print(robot_summary(profile))
     for line in missing:
         print(f"not found: {line}")
     print(f"next: ambiegen nav2-params {args.from_params} --robot {out} -o merged.yaml")
@@ -149,3 +146,11 @@ def register(sub) -> None:
                                                                              "overwritten without --overwrite)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing OUT.yaml")
     p.set_defaults(func=cmd_robot_profile)
+
+
+def robot_summary(profile) -> str:
+    """One line of what a robot profile says: its drive, body, top speed and first laser."""
+    body = f"robot_radius {profile.radius:g} m" if profile.round else f"footprint {profile.nav2_footprint()}"
+    laser = profile.lasers[0]
+    return (f"robot {profile.name}: {profile.drive}, {body}, {profile.max_speed[0]:g} m/s, laser {laser.frame} at "
+            f"({laser.x:g}, {laser.y:g})")
