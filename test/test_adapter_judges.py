@@ -159,6 +159,41 @@ def test_the_robot_on_topics_publishes_map_and_start_then_the_goal_and_knows_the
     assert robot_job(scenario_heading, StandInNode(), robot[1]).start_pose[2] == 0.0
 
 
+def test_a_goal_nothing_answered_goes_again_and_one_the_stack_answered_does_not(robot):
+    """A goal lost on the wire (a stack part's discovery not complete): with a status topic, no
+    status since the goal after GOAL_RESEND_S goes again, at most GOAL_RESENDS times; a status
+    heard, or no topic that could tell, and it goes once."""
+    from sim_nodes.adapter.robot_topic import GOAL_RESEND_S, GOAL_RESENDS
+
+    def turn(judge, job, now):
+        return judge.step(job, RunView(now, judge_order, False, lambda: False))
+
+    judge_order = StampOrder([("stall", "decision")])
+    judge, node, _ = make_judge(TopicRobot, robot[0], stall_topic="/nd_driver/stall")
+    job = robot_job(judge, node, robot[1])
+    judge.send_goal(job)
+    sent = job.goal_sent
+    turn(judge, job, sent + GOAL_RESEND_S / 2)
+    assert len(node.pubs["/goal_pose"].sent) == 1  # not yet: a stack may take a moment
+    for k in range(GOAL_RESENDS + 2):
+        turn(judge, job, job.goal_sent + GOAL_RESEND_S + 0.1)
+    assert len(node.pubs["/goal_pose"].sent) == 1 + GOAL_RESENDS and job.goal_sends == 1 + GOAL_RESENDS
+    assert any("it goes again" in line for line in node.said)
+
+    answered, node2, _ = make_judge(TopicRobot, robot[0], stall_topic="/nd_driver/stall")
+    job2 = robot_job(answered, node2, robot[1])
+    answered.send_goal(job2)
+    job2.heard["stall"] = 1  # the stack's first status since the goal (the node counts them)
+    turn(answered, job2, job2.goal_sent + 10 * GOAL_RESEND_S)
+    assert len(node2.pubs["/goal_pose"].sent) == 1
+
+    blind, node3, _ = make_judge(TopicRobot, robot[0])  # no status, no plan topic: nothing tells a lost goal
+    job3 = robot_job(blind, node3, robot[1])
+    blind.send_goal(job3)
+    turn(blind, job3, job3.goal_sent + 10 * GOAL_RESEND_S)
+    assert len(node3.pubs["/goal_pose"].sent) == 1
+
+
 def run_by_stamps(judge, job, deliveries):
     """The node's way from messages to the oracle: samples and collision statuses into the stamp
     order in the given delivery order, released, timed and fed to the judge."""
@@ -384,8 +419,8 @@ def accepted(oracle, grid: np.ndarray, start: tuple, goal: tuple, start_yaw: flo
                           unmapped=None)
     problem = SimpleNamespace(name="robot", environment=lambda scenario: env, hazards=False)
     answered, queue = [], deque()
-    stand_in = SimpleNamespace(job=None, queue=queue, validity=lambda scenario: (True, ""), run_invalid=False,
-                               reference=True, problem=problem, oracle=oracle, idle=lambda: None,
+    stand_in = SimpleNamespace(job=None, queue=queue, answered={}, validity=lambda scenario: (True, ""),
+                               run_invalid=False, reference=True, problem=problem, oracle=oracle, idle=lambda: None,
                                publish=lambda run_id, sid, outcome: answered.append(outcome),
                                node=SimpleNamespace(logger=SimpleNamespace(info=lambda text: None)))
     SutAdapter.accept(stand_in, "r", 1, None, None)

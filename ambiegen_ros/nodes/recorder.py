@@ -5,7 +5,9 @@ summary), so ``ros2 bag info/play`` and Foxglove open it. The run's config, seed
 stored as MCAP metadata when the latched ``RunConfig`` arrives. The log is flushed every
 ``flush_period`` seconds and finalised on SIGINT/SIGTERM, once what was still on its way has
 been taken (until nothing came for 0.5 s, 3 s at most; ``Node.finish_io``); after a SIGKILL,
-``ambiegen recover FILE.mcap`` rebuilds a valid file with everything up to the last flush. A file
+``ambiegen recover FILE.mcap`` rebuilds a valid file with everything up to the last flush. A
+scenario, a result or a stack event is flushed as it arrives (``VITAL_FLUSH_S`` later at most, so a
+burst of them is one chunk): a recorder killed during a run keeps the run's scenario. A file
 that can take no more (the disk is full) stops the recorder with one line saying so and exit
 status 3; the log keeps everything up to the last flush.
 
@@ -55,6 +57,10 @@ FAST_DDS_READER_DEPTH = 2000
 TIMELINE_TOPICS = frozenset(topics.timeline(p) for p in topics.TIMELINE_TYPES)
 CANNOT_WRITE = 3  # exit status: the disk is full (or the file may not grow): the log is kept up to the last flush
 WAIT_PERIOD = 0.05  # s between two looks at the graph while an extra topic has no matched reader yet
+
+
+VITAL_FLUSH_S = 0.05  # a scenario, result or stack event reaches the file this soon (SIGKILL-safe)
+VITAL_TOPICS = frozenset([topics.RESULTS, topics.STACK_EVENTS, *(topics.scenarios(p) for p in topics.SCENARIO_TYPES)])
 
 
 def offered_qos(offered: list) -> Qos:
@@ -110,6 +116,8 @@ class Recorder:
             self.record(topic, typename, qos)
             self.pending.pop(topic, None)  # an extra topic that is a run topic is read already
         n.create_timer(flush_period, self.flush)
+        self.vital_unflushed = False  # a scenario, result or stack event written since the last flush
+        n.create_timer(VITAL_FLUSH_S, lambda: self.flush() if self.vital_unflushed else None)
         if self.discover or self.pending:
             n.create_timer(1.0, self.discover_topics)
         if self.wanted:
@@ -125,6 +133,7 @@ class Recorder:
             return None
         channel = self.log.add_channel(topic, typename, qos)
         is_config = topic == topics.RUN_CONFIG
+        vital = topic in VITAL_TOPICS
 
         def on_bytes(data: bytes, receive_ns: int) -> None:
             if self.cannot_write is not None:
@@ -136,6 +145,7 @@ class Recorder:
                 return
             if is_config:
                 self.store_run_config(data)
+            self.vital_unflushed = self.vital_unflushed or vital
 
         # the reader's queue is local (it does not affect matching): keep it deep so bursts are not lost.
         # Timelines (hundreds of samples per full-model run, in bursts) are read best-effort, so a
@@ -213,6 +223,7 @@ class Recorder:
         if self.cannot_write is not None:
             return
         try:
+            self.vital_unflushed = False
             self.log.flush()
             self.flushed_at = datetime.now(timezone.utc)
         except OSError as exc:

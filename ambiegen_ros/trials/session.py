@@ -59,11 +59,20 @@ class StackStopped(Exception):
 class SuiteDriver:
     """Publishes scenarios as the generator does and takes every result; answers a lost one with a
     published result of its own (``sim_timeout``, or ``error`` naming a part of ours that died), so
-    the log accounts for every scenario it sent."""
+    the log accounts for every scenario it sent.
+
+    A scenario can be lost on the wire: a reliable volatile reader that has not finished its side of
+    discovery drops what a writer already matched to it sends. While a result is awaited, a
+    scenario that every worker's heartbeat, taken ``RESEND_AFTER_S`` after it went out, shows idle
+    goes again (``RESENDS`` times at most); the adapter answers one it has run from its record, and
+    never runs a scenario twice."""
+
+    RESEND_AFTER_S = 3.0
+    RESENDS = 3
 
     def __init__(self, node: Any, problem: Any):
         from ..ros import conversions, topics
-        from ..ros.qos import LATCHED, STREAM
+        from ..ros.qos import DEFAULT, LATCHED, STREAM
 
         self.node, self.problem, self.conv, self.topics = node, problem, conversions, topics
         self.pub = node.create_publisher(topics.SCENARIO_TYPES[problem.name], topics.scenarios(problem.name), STREAM)
@@ -71,12 +80,21 @@ class SuiteDriver:
         self.pub_config = node.create_publisher(topics.RUN_CONFIG_TYPE, topics.RUN_CONFIG, LATCHED)
         self.results: dict[tuple[str, int], Any] = {}
         self.workers: dict[tuple[str, int], str] = {}
+        self.sent: dict[tuple[str, int], list] = {}  # awaited: [message, monotonic time sent, times sent]
+        self.beats: dict[str, tuple[float, bool]] = {}  # worker -> (monotonic time heard, idle)
+        self.resent = 0
         node.create_subscription(topics.RESULT_TYPE, topics.RESULTS, self.on_result, STREAM)
+        node.create_subscription(topics.WORKERS_TYPE, topics.WORKERS, self.on_beat, DEFAULT)
 
     def on_result(self, msg: Any) -> None:
         key = (msg.run_id, int(msg.scenario_id))
         self.results.setdefault(key, self.conv.outcome_from_message(msg))
         self.workers.setdefault(key, msg.worker)
+        self.sent.pop(key, None)
+
+    def on_beat(self, msg: Any) -> None:
+        if msg.hardware_id == self.problem.name:
+            self.beats[msg.name] = (time.monotonic(), msg.message == "idle")
 
     def announce(self, run_id: str, config: dict) -> None:
         """The run's configuration on ``/ambiegen/run_config`` (latched): the bag says what ran."""
@@ -91,11 +109,27 @@ class SuiteDriver:
 
     def send(self, run_id: str, sid: int, scenario: Any, seed: int = 0) -> None:
         meta = self.conv.ScenarioMeta(run_id, sid, seed=seed)
-        self.pub.publish(self.conv.scenario_message(self.node.new_message, self.node.now_ns(), self.problem, scenario,
-                                                    meta))
+        msg = self.conv.scenario_message(self.node.new_message, self.node.now_ns(), self.problem, scenario, meta)
+        self.sent[(run_id, sid)] = [msg, time.monotonic(), 1]
+        self.pub.publish(msg)
+
+    def resend_lost(self) -> bool:
+        """Send again what every worker, heard since, shows it does not hold (always False: a
+        ``spin_until`` condition that acts)."""
+        now = time.monotonic()
+        for key, entry in list(self.sent.items()):
+            msg, at, times = entry
+            heard = [idle for t, idle in self.beats.values() if t > at + self.RESEND_AFTER_S]
+            if times <= self.RESENDS and heard and all(heard) and now - at > self.RESEND_AFTER_S:
+                self.node.logger.warning(f"scenario {key[1]} of run {key[0]}: no result, and no worker holds it "
+                                         f"{now - at:.1f} s after it went out: sent again")
+                entry[1], entry[2] = now, times + 1
+                self.resent += 1
+                self.pub.publish(msg)
+        return False
 
     def wait(self, run_id: str, sid: int, timeout: float, stop: Callable[[], bool] = lambda: False) -> Any:
-        self.node.spin_until(lambda: (run_id, sid) in self.results or stop(), timeout)
+        self.node.spin_until(lambda: self.resend_lost() or (run_id, sid) in self.results or stop(), timeout)
         return self.results.get((run_id, sid))
 
     def lost(self, run_id: str, sid: int, detail: str, kind: str = "sim_timeout") -> Any:
@@ -106,6 +140,7 @@ class SuiteDriver:
         self.pub_results.publish(self.conv.result_message(self.node.new_message, self.node.now_ns(), run_id, sid,
                                                           self.problem.name, "ambiegen_trials", outcome))
         self.results[(run_id, sid)] = outcome
+        self.sent.pop((run_id, sid), None)
         return outcome
 
 
@@ -446,6 +481,7 @@ class StackSession:
             self.node.spin_until(lambda: False, 0.2)  # the recorder takes the result
         finally:
             self.in_flight = False
+            self.driver.sent.pop((self.run_id, sid), None)  # answered, lost or interrupted: never sent again
         return outcome, sid, time.monotonic() - t0, w0, list(self.deaths)
 
     def _take_deaths(self) -> None:
@@ -500,50 +536,64 @@ class StackSession:
             for part in self.stack_parts:
                 groups.setdefault(part, groups["robot_world"])
         order = sorted(groups, key=lambda n: (n != "robot_world", n in self.stack_parts))  # world, ours, stack
-        return [self.restart(name, groups[name]) for name in order]
+        ours = [[name] for name in order if name not in self.stack_parts]
+        stack = [name for name in order if name in self.stack_parts]  # one unit: killed, then started, together
+        return [record for names in ours + ([stack] if stack else []) for record in self.restart(names, groups)]
 
-    def restart(self, name: str, why: Death) -> dict:
-        """Kill ``name``'s process group for good and start it again; wait until it shows up."""
+    def restart(self, names: list[str], why: dict[str, Death]) -> list[dict]:
+        """Kill ``names``' process groups for good and start them again, together (the parts of one
+        stack: a lifecycle manager and the servers it activates come back as one); wait until they
+        show up. A record per part."""
         t0 = time.monotonic()
-        proc = self.group.procs.get(name)
-        if proc is not None:
-            for sig in (signal.SIGCONT, signal.SIGKILL):  # a stopped process too
-                try:
-                    os.killpg(proc.pid, sig)
-                except (ProcessLookupError, PermissionError):
-                    pass
-            proc.wait()
+        unit = names[0] if len(names) == 1 else "stack"
+        before = self._endpoints(unit)  # the dead parts': their successors' are the ones not among them
+        for name in names:
+            proc = self.group.procs.get(name)
+            if proc is not None:
+                for sig in (signal.SIGCONT, signal.SIGKILL):  # a stopped process too
+                    try:
+                        os.killpg(proc.pid, sig)
+                    except (ProcessLookupError, PermissionError):
+                        pass
+                proc.wait()
         # the dead part's endpoints leave the graph at the end of its lease: only then is its
         # successor told apart from it (a scenario sent before would miss a new adapter or recorder)
-        self.node.spin_until(lambda: self._gone(name), GONE_TIMEOUT_S)
-        argv = list(self.argv[name])
-        if name == "recorder":
+        self.node.spin_until(lambda: self._gone(unit, before), GONE_TIMEOUT_S)
+        if "recorder" in names:
             self.recover_bag(self.bags[-1])
             self.bags.append(self.dir / f"trials.{len(self.bags)}.mcap")
-            argv = [a.replace(f"output:={self.bags[-2]}", f"output:={self.bags[-1]}") for a in argv]
-            self.argv[name] = argv
-        started = self.group.start_argv(name, argv)
-        self.watch.forget(name)
+            self.argv["recorder"] = [a.replace(f"output:={self.bags[-2]}", f"output:={self.bags[-1]}")
+                                     for a in self.argv["recorder"]]
+        started = {name: self.group.start_argv(name, list(self.argv[name])) for name in names}
+        for name in names:
+            self.watch.forget(name)
         # a successor that exits at once (a params file gone, a broken install) will not come back:
         # stop now with its last words rather than wait out the bound
-        ok = self.node.spin_until(lambda: self._shows_up(name) or started.poll() is not None,
-                                  self.settings.ready_timeout) and started.poll() is None
+        exited = lambda: [n for n, p in started.items() if p.poll() is not None]  # noqa: E731
+        ok = self.node.spin_until(lambda: self._shows_up(unit, before) or bool(exited()),
+                                  self.settings.ready_timeout) and not exited()
         self._interrupted()
         took = time.monotonic() - t0
-        if ok and name == "recorder":  # what the dead recorder did not hear: its own death, the run's result
-            self.relog(why)
-        record = {"event": "restart", "process": name, "why": why.words(), "took_s": round(took, 2), "ok": ok}
-        self.log_event(record)
-        self.say(f"[{self.prepared.config.label}] restarted {name} ({why.words()}) in {took:.1f} s"
-                 + ("" if ok else " but it did not show up"))
+        if ok and "recorder" in names:  # what the dead recorder did not hear: its own death, the run's result
+            self.relog(why["recorder"])
+        records = []
+        for name in names:
+            record = {"event": "restart", "process": name, "why": why[name].words(), "took_s": round(took, 2),
+                      "ok": ok}
+            self.log_event(record)
+            records.append(record)
+        self.say(f"[{self.prepared.config.label}] restarted {', '.join(names)} ({why[names[0]].words()}) in "
+                 f"{took:.1f} s" + ("" if ok else " but it did not show up"))
         if not ok:
-            after = f"after {why.words()} (logs: {self.dir / 'logs'})"
-            if started.poll() is not None:
-                raise StackStopped(f"{name} did not come back: it exited with status {started.returncode} "
+            after = f"after {why[names[0]].words()} (logs: {self.dir / 'logs'})"
+            if exited():
+                name = exited()[0]
+                raise StackStopped(f"{name} did not come back: it exited with status {started[name].returncode} "
                                    f"{took:.0f} s after its restart, saying "
                                    f"{last_words(self.dir / 'logs' / f'{name}.log')!r}, {after}")
-            raise StackStopped(f"{name} did not come back within {self.settings.ready_timeout:.0f} s {after}")
-        return record
+            raise StackStopped(f"{', '.join(names)} did not come back within {self.settings.ready_timeout:.0f} s "
+                               f"{after}")
+        return records
 
     def relog(self, why: Death) -> None:
         """After a recorder restart: its death and the results it missed, into the new bag."""
@@ -559,26 +609,38 @@ class StackSession:
         self.unlogged.clear()
         self.node.spin_until(lambda: False, 0.3)
 
-    def _gone(self, name: str) -> bool:
-        """The part's endpoints are off the graph (see ``_shows_up`` for what each one shows)."""
-        info = self.node.publishers_info
+    def _signs(self, name: str) -> tuple[str, ...]:
+        """The topics a part publishes that tell it is on the graph: the world /odom; the stack
+        (``name`` a part of it or "stack") /cmd_vel, Nav2's also its navigate_to_pose server's
+        status, the planner stack its compute_path_to_pose server's status."""
         if name == "robot_world":
-            return not info("/odom")
+            return ("/odom",)
+        if self.settings.stack == "planner":
+            return ("/compute_path_to_pose/_action/status",)
+        if name == "nav2" or self.settings.stack in NAV2_STACKS:
+            return ("/cmd_vel", "/navigate_to_pose/_action/status")
+        return ("/cmd_vel",)
+
+    def _endpoints(self, name: str) -> set[bytes]:
+        """The global ids of the publishers on ``name``'s signs (``_signs``) now."""
+        if name in ("sut_adapter", "recorder"):
+            return set()
+        return {ep.gid for topic in self._signs(name) for ep in self.node.publishers_info(topic)}
+
+    def _gone(self, name: str, before: set[bytes]) -> bool:
+        """The dead part's endpoints are off the graph: one of those seen before the kill has left (a
+        process's endpoints leave together; another stack part's on the same topic stay). The
+        adapter and the recorder: the driver's scenarios have no reader but its own."""
         if name in ("sut_adapter", "recorder"):
             return self.driver.pub.subscription_count() <= 1
-        return not info("/cmd_vel")
+        return not before or not before <= self._endpoints(name)
 
-    def _shows_up(self, name: str) -> bool:
-        """The restarted part is on the graph: the world publishes /odom, the stack /cmd_vel (Nav2:
-        and its navigate_to_pose server), the adapter and the recorder take scenarios."""
-        info = self.node.publishers_info
-        if name == "robot_world":
-            return bool(info("/odom"))
+    def _shows_up(self, name: str, before: set[bytes] = frozenset()) -> bool:
+        """The restarted part is on the graph: a publisher on each of its signs that was not there
+        before the kill; the adapter and the recorder take scenarios."""
         if name in ("sut_adapter", "recorder"):
             return self.driver.pub.subscription_count() >= 2
-        if name == "nav2" or self.settings.stack in NAV2_STACKS:
-            return bool(info("/cmd_vel")) and bool(info("/navigate_to_pose/_action/status"))
-        return bool(info("/cmd_vel"))
+        return all({ep.gid for ep in self.node.publishers_info(topic)} - before for topic in self._signs(name))
 
     def recover_bag(self, path: Path) -> Path | None:
         """A bag cut short (its recorder killed) rebuilt beside it (``ambiegen recover``); None when it

@@ -37,6 +37,9 @@ class Job:
     before: Any = None  # the reference's static check (passed), the word on a failure without a reference run
     grace_until: float | None = None  # monotonic: Nav2 failed; a crash reported by then explains it
     taken_down: str = ""  # a Nav2 lifecycle node left the active state during the run: what happened
+    goal_sends: int = 0  # topic goals: how often the goal went out (more than once: the stack showed no sign of it)
+    goal_sent: float = 0.0  # monotonic: when it last went out
+    heard: dict = field(default_factory=dict)  # status stream -> messages received since the goal went out
 
     @property
     def nav2_resend_due(self) -> bool:

@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 import time
 import traceback
-from collections import deque
+from collections import OrderedDict, deque
 from typing import Any
 
 from ambiegen_ros.ros import conversions, topics
@@ -51,6 +51,7 @@ from .registry import GOAL_MODES, JUDGES, PROBLEMS, judge_for
 from .robot_topic import with_give_up
 from .samples import timed
 
+ANSWERS_KEPT = 256  # results kept for a scenario sent again (a driver that missed the first)
 STAMP_CLOCKS = ("sim", "wall", "receive")
 ODOM_FRAMES = ("map", "start")
 # what a bad scenario message raises on its way to the contract (conversions, the problem's parsing:
@@ -148,7 +149,7 @@ class SutAdapter:
         self.endpoint = WorkerEndpoint(n, self.problem, self.accept,
                                        lambda: len(self.queue) + (self.job is not None), default_id)
         self.worker_id = self.endpoint.worker_id
-        self.publish = self.endpoint.publish
+        self.answered: OrderedDict[tuple[str, int], Any] = OrderedDict()  # the last results, for a scenario sent again
         warm_up_judge(self.problem_name, self.oracle)  # not mid-run: see its docstring
         # the next scenario starts as the last one ends or as it arrives (finish, accept); this
         # timer only catches what those miss, so it need not wake the node 50 times a second
@@ -184,9 +185,20 @@ class SutAdapter:
         return oracle_config(self.problem_name, options, self.settings.get("robot_profile", ""))
 
     # --- worker side ----------------------------------------------------------------------------
+    def publish(self, run_id: str, sid: int, outcome: Outcome) -> None:
+        """A scenario's result, out and kept a while: a driver that did not hear it sends the scenario again."""
+        self.answered[(run_id, sid)] = outcome
+        while len(self.answered) > ANSWERS_KEPT:
+            self.answered.popitem(last=False)
+        self.endpoint.publish(run_id, sid, outcome)
+
     def accept(self, run_id: str, sid: int, scenario: Any, msg: Any) -> None:
         if any((j.run_id, j.scenario_id) == (run_id, sid) for j in [self.job, *self.queue] if j is not None):
             return  # a re-sent scenario still waiting here: its one result is coming
+        if (run_id, sid) in self.answered:  # sent again: its result went out and was not heard; never run twice
+            self.node.logger.info(f"scenario {sid} of run {run_id} came again: its result, once more")
+            self.endpoint.publish(run_id, sid, self.answered[(run_id, sid)])
+            return
         valid, reason = self.validity(scenario)
         if not valid and not self.run_invalid:
             outcome = Outcome.rejected(f"restriction broken: {reason}")
@@ -261,6 +273,8 @@ class SutAdapter:
         """A stamped status on the stall or collision topic: a heartbeat, or the stream's event (a
         WARN on the collision topic: a person walked into the robot, counted, not a failure)."""
         if self.job is not None:
+            if self.job.phase in ("waiting", "running"):
+                self.job.heard[name] = self.job.heard.get(name, 0) + 1
             if name == "collision" and conversions.status_note(msg) is not None:
                 self.job.contacts_not_at_fault += 1
             stamp, problem = conversions.status_problem(msg)
@@ -437,6 +451,8 @@ class SutAdapter:
                            "time_scale": self.time_scale, "stamp_clock": self.stamp_clock}
         if hazards:
             outcome.metrics["contacts_not_at_fault"] = job.contacts_not_at_fault
+        if job.goal_sends > 1:
+            outcome.metrics["goal_sends"] = job.goal_sends
         self.publish(job.run_id, job.scenario_id, outcome)
         self.node.logger.info(f"scenario {job.scenario_id}: {outcome.failure_kind} ({outcome.detail}) in {wall:.2f} s")
         self.idle()

@@ -24,6 +24,11 @@
 * **The robot** is ``robot_profile``'s (the same name or path robot_world takes): the references
   keep its radius from the walls, a car's route must suit its turning radius, the judge measures its
   body ('' = the Pioneer). A bad profile stops the node with one line naming the field.
+* **A goal lost on the wire goes again.** A reliable volatile message can miss a subscriber whose
+  side of discovery is not complete (a stack part restarted a moment ago): with ``stall_topic`` or
+  ``plan_topic`` set, a goal that no status and no plan answered within ``GOAL_RESEND_S`` wall
+  seconds goes again, ``GOAL_RESENDS`` times at most (``metrics["goal_sends"]``); without either,
+  nothing tells a lost goal from a slow stack, and it goes once.
 * **Plans.** With ``plan_topic`` (``nav_msgs/Path``, the stack's global plan) the plans published
   after the goal are counted (``metrics["plans"]``, the last one's ``plan_length_m``), and a failure
   without any says so (``with_plans``). A stall the stack itself reported says so (``with_give_up``).
@@ -31,6 +36,7 @@
 from __future__ import annotations
 
 import math
+import time
 from typing import Any
 
 from ambiegen_ros.ros import conversions, topics
@@ -40,9 +46,12 @@ from ambiegen_ros.sims.oracles import RobotJudge
 from ambiegen_ros.sims.robot import polyline_length
 from ambiegen_ros.sims.stamp_order import DECISION, STATE
 
-from .judge import ScenarioJudge
+from .judge import RunView, ScenarioJudge
 from .params import Param
 from .samples import to_map_frame
+
+GOAL_RESEND_S = 2.0  # wall seconds a goal may go unanswered (no status, no plan) before it goes again
+GOAL_RESENDS = 3  # ... at most this often
 
 ROBOT_PARAMS = (
     Param("settle_time", float, 0.3, "seconds between map + initial pose and the goal"),
@@ -168,6 +177,24 @@ class TopicRobot(ScenarioJudge):
 
     def send_goal(self, job: Any) -> None:
         self.pub_goal.publish(self.goal_message(job))
+        job.goal_sends, job.goal_sent = job.goal_sends + 1, time.monotonic()
+
+    def step(self, job: Any, view: RunView) -> str | None:
+        """A goal the stack never answered (no status on ``stall_topic``, no plan) goes again."""
+        if job.goal_sends and job.goal_sends <= GOAL_RESENDS and view.now - job.goal_sent > GOAL_RESEND_S \
+                and self.unanswered(job):
+            self.node.logger.warning(f"scenario {job.scenario_id}: no sign the stack took the goal in "
+                                     f"{GOAL_RESEND_S:g} s (no status on {self.topics['stall'] or '-'}, no plan on "
+                                     f"{self.topics['plan'] or '-'}): it goes again")
+            self.send_goal(job)
+        return None
+
+    def unanswered(self, job: Any) -> bool:
+        """Nothing of the stack's since the goal went out (False when nothing could tell: neither a
+        status nor a plan topic)."""
+        if not self.topics["stall"] and not self.topics["plan"]:
+            return False
+        return not job.heard.get("stall") and not self.plans
 
     def goal_message(self, job: Any) -> Any:
         make = self.node.new_message

@@ -105,6 +105,6 @@ class Driver:
             self.suite_driver.send(run_id, i, sc)
 
     def wait(self, run_id: str, count: int, timeout: float) -> list:
-        done = lambda: sum(k[0] == run_id for k in self.results) >= count  # noqa: E731
+        done = lambda: self.suite_driver.resend_lost() or sum(k[0] == run_id for k in self.results) >= count  # noqa: E731
         self.node.spin_until(done, timeout)
         return [self.results.get((run_id, i)) for i in range(count)]

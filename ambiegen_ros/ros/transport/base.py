@@ -45,6 +45,8 @@ class EndpointInfo:
     type_hash: str = ""
     node_name: str = ""
     node_namespace: str = ""
+    gid: bytes = b""
+    """The endpoint's global id: tells a restarted process's endpoint from its dead predecessor's."""
 
 
 _LEVELS = {"debug": 10, "info": 20, "warn": 30, "warning": 30, "error": 40, "fatal": 50}

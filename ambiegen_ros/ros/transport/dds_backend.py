@@ -528,7 +528,7 @@ class DdsNode(Node):
             ns, node = self._endpoint_nodes.get(ep.key.bytes, ("", ""))
             out.append(EndpointInfo(topic=fqn, typename=dds_type_to_ros(ep.type_name), qos=qos,
                                     keep_all=keep_all, type_hash=type_hash, node_name=node,
-                                    node_namespace=ns))
+                                    node_namespace=ns, gid=bytes(ep.key.bytes)))
         return out
 
     # -- execution -------------------------------------------------------------------------------

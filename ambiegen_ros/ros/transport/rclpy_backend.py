@@ -405,7 +405,8 @@ class RclpyNode(Node):
             th = getattr(info, "topic_type_hash", "")
             out.append(EndpointInfo(topic=fqn, typename=info.topic_type, qos=qos, keep_all=keep_all,
                                     type_hash=str(th) if th else "", node_name=info.node_name,
-                                    node_namespace=info.node_namespace))
+                                    node_namespace=info.node_namespace,
+                                    gid=bytes(bytearray(getattr(info, "endpoint_gid", b"") or b""))))
         return out
 
     @property
