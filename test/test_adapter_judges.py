@@ -419,7 +419,7 @@ def accepted(oracle, grid: np.ndarray, start: tuple, goal: tuple, start_yaw: flo
                           unmapped=None)
     problem = SimpleNamespace(name="robot", environment=lambda scenario: env, hazards=False)
     answered, queue = [], deque()
-    stand_in = SimpleNamespace(job=None, queue=queue, answered={}, validity=lambda scenario: (True, ""),
+    stand_in = SimpleNamespace(job=None, queue=queue, answered={}, mode=TopicRobot, validity=lambda scenario: (True, ""),
                                run_invalid=False, reference=True, problem=problem, oracle=oracle, idle=lambda: None,
                                publish=lambda run_id, sid, outcome: answered.append(outcome),
                                node=SimpleNamespace(logger=SimpleNamespace(info=lambda text: None)))

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import json
 import platform
 import sys
@@ -24,14 +25,20 @@ HISTORY_COLUMNS = ("evaluations", "elapsed_s", "best_f1", "mean_f1", "front_size
 
 
 def versions() -> dict[str, str]:
-    """Package and dependency versions, recorded in every output for reproducibility."""
+    """Package and dependency versions, recorded in every output for reproducibility (read once
+    per process: a row per run would otherwise scan the installed packages each time)."""
+    return dict(_versions())
+
+
+@functools.lru_cache(maxsize=1)
+def _versions() -> tuple[tuple[str, str], ...]:
     out = {"ambiegen_ros": __version__, "python": platform.python_version()}
     for name in DEPENDENCIES:
         try:
             out[name] = metadata.version(name)
         except metadata.PackageNotFoundError:
             out[name] = "not installed"
-    return out
+    return tuple(out.items())
 
 
 def run_config(problem: Problem, result_or_settings: Any, extra: dict[str, Any] | None = None) -> dict[str, Any]:

@@ -153,6 +153,20 @@ def lean_parts(settings: Any) -> tuple[str, ...]:
     return ("robot_world", "recorder", "sut_adapter")
 
 
+def planner_upsample(params: dict, settings: Any) -> int:
+    """Map cells per scenario cell for a planner stack: the map at the global costmap's own
+    ``resolution`` (Jazzy's 0.05 m: 20 per 1 m cell), as a real map server gives it; without one,
+    ``settings.map_upsample``."""
+    from ..problems.robot.config import RobotConfig
+
+    costmap = (((params.get("global_costmap") or {}).get("global_costmap") or {}).get("ros__parameters")) or {}
+    try:
+        k = round(RobotConfig().resolution / float(costmap["resolution"]))
+    except (KeyError, TypeError, ValueError, ZeroDivisionError):
+        return settings.map_upsample
+    return k if k >= 1 else settings.map_upsample
+
+
 def stack_nodes(settings: Any, prepared: Prepared, problem_file: Path, bag: Path, tag: str) -> list:
     """The node set of one configuration: recorder, world, stack, adapter (``launch_logic.NodeSpec``)."""
     from ..campaign import STACK_TOPICS
@@ -166,8 +180,8 @@ def stack_nodes(settings: Any, prepared: Prepared, problem_file: Path, bag: Path
     recorder = NodeSpec("recorder", "recorder", {"output": str(bag), "extra_topics": ",".join(recorded)})
     if planner:
         try:
-            nodes = planner_stack(prepared.params, prepared.path, tag, settings.map_upsample, settings.start_timeout,
-                                  str(problem_file), "")
+            nodes = planner_stack(prepared.params, prepared.path, tag, planner_upsample(prepared.params, settings),
+                                  settings.start_timeout, str(problem_file), "")
         except ValueError as exc:
             from ..core.errors import BadInput
 
@@ -391,8 +405,9 @@ class StackSession:
         if self.node.spin_until(lambda: taken() == 0, GONE_TIMEOUT_S):
             return
         self._interrupted()
+        readers = taken()  # counted before the node goes: its writer goes with it
         self.node.shutdown()
-        raise StackStopped(f"[{self.prepared.config.label}] {taken()} reader(s) of another session take scenarios "
+        raise StackStopped(f"[{self.prepared.config.label}] {readers} reader(s) of another session take scenarios "
                            f"on ROS domain {domain} (an adapter or recorder still running?): stop it, or give this "
                            f"command its own --domain-id")
 
@@ -478,7 +493,8 @@ class StackSession:
                                            f"said {verdict}): run it again", kind="error")
             if any(d.process == "recorder" for d in ours):
                 self.unlogged.append((sid, outcome))  # logged by the next recorder, once it is up
-            self.node.spin_until(lambda: False, 0.2)  # the recorder takes the result
+            # no pause for the recorder: it takes the result as we do, and flushes it within
+            # ``recorder.VITAL_FLUSH_S``; a fault injected later finds it on file
         finally:
             self.in_flight = False
             self.driver.sent.pop((self.run_id, sid), None)  # answered, lost or interrupted: never sent again

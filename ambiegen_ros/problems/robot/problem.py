@@ -133,10 +133,13 @@ class RobotProblem(Problem):
         makes it the time on most maps (Spearman 0.95 with the route on a GA run of DWB). The pace
         of MPPI's near misses was 2.75-5.05 s/m against 2.19-3.57 for plain passes, and of a DWB
         failure 7.9 (docs/external_sut.md, "In the loop"). ``time_share`` stays, so that the bags
-        of the campaign that measured it replay."""
+        of the campaign that measured it replay. A planner's answer (``--stack planner``) has no
+        time: ``plan_f1`` scores it, whatever ``loop_objective`` says."""
+        m = outcome.metrics
+        if "plan_oracle" in m:  # a planner's answer (goal_mode plan): no time, no route driven
+            return plan_f1(outcome.failed, m.get("plan_clearance_m"))
         if self.config.loop_objective == "time":
             return super().loop_f1(outcome)
-        m = outcome.metrics
         try:
             spent = float(m["time_limit"] if outcome.failed else m["time"])
             route = m.get("route_length_m") or m.get("route_length")  # a stack's judge | our full model
@@ -302,3 +305,20 @@ class RobotProblem(Problem):
         return hz.features(hz.PlacementRoute(np.asarray(env.path_m)), layout, np.asarray(u["posts"]).reshape(-1, 3),
                            np.asarray(u["boxes"]).reshape(-1, 4), u["people"], env.grid, env.resolution,
                            self.config.threat_speed if speed is None else speed)
+
+
+PLAN_CLEARANCE_SCALE_M = 0.2  # a path this close to a lethal cell's centre scores 1/e of a touching one
+
+
+def plan_f1(failed: bool, clearance_m: Any) -> float:
+    """F1 of a planner's answer in the loop: a finding (an oracle of ``sims.plans`` flagged it) 2,
+    above any path that held; a path that held exp(-clearance / 0.2 m) in (0, 1], climbing towards
+    paths that pass close to lethal cells (where a footprint or a smoother's shortcut collides); a
+    path far from every wall, or none, 0."""
+    if failed:
+        return 2.0
+    try:
+        value = math.exp(-float(clearance_m) / PLAN_CLEARANCE_SCALE_M)
+    except (TypeError, ValueError):
+        return 0.0
+    return value if math.isfinite(value) else 0.0
