@@ -256,3 +256,33 @@ def test_the_planner_stack_runs_the_params_plugin_under_its_rules_and_refuses_on
     made = stack_nodes(settings, prepared, tmp_path / "problem.yaml", tmp_path / "b.mcap", "t1")
     assert [n.name for n in made][0] == "recorder" and "robot_world" not in [n.name for n in made]
     assert "/global_costmap/costmap" in made[0].parameters["extra_topics"]
+
+
+def test_a_search_in_the_loop_climbs_towards_findings_and_paths_close_to_walls():
+    """``loop_f1`` of a planner's answer (no time, no route driven): a finding above any path that
+    held, a path closer to a lethal cell above a farther one, no path or an unusable answer 0."""
+    from ambiegen_ros.nodes.generator import loop_evaluation
+    from ambiegen_ros.problems import get_problem
+    from ambiegen_ros.sims import Outcome
+
+    problem = get_problem("robot", {"profile": "refined", "loop_objective": "pace"})
+
+    def answer(kind: str, clearance):
+        return Outcome({"plan_closeness": 0.0}, kind not in ("none", "invalid_test"), kind, kind,
+                       metrics={"plan_oracle": "x", "plan_clearance_m": clearance})
+
+    found, close, far, none, proved = (answer("collision", 0.0), answer("none", 0.05), answer("none", 1.5),
+                                       answer("none", None), answer("invalid_test", None))
+    f1 = loop_evaluation([found, close, far, none, proved], problem.loop_f1).f1
+    assert f1[0] == 2.0 and 1.0 > f1[1] > f1[2] > 0.0 and f1[3] == 0.0 and f1[4] == 0.0, f1
+
+
+def test_the_planner_stack_sends_maps_at_the_costmaps_own_resolution():
+    from ambiegen_ros.trials.session import planner_upsample
+
+    settings = SimpleNamespace(map_upsample=5)
+    costmap = lambda res: {"global_costmap": {"global_costmap": {"ros__parameters": {"resolution": res}}}}  # noqa: E731
+    assert planner_upsample(costmap(0.05), settings) == 20  # Jazzy's: 1 m scenario cells as 0.05 m map cells
+    assert planner_upsample(costmap(0.1), settings) == 10
+    assert planner_upsample(costmap(0.05), settings, cell_m=0.25) == 5  # config/robot_planner.yaml's 0.25 m cells
+    assert planner_upsample({}, settings) == 5 and planner_upsample(costmap("x"), settings) == 5

@@ -153,15 +153,25 @@ def lean_parts(settings: Any) -> tuple[str, ...]:
     return ("robot_world", "recorder", "sut_adapter")
 
 
-def planner_upsample(params: dict, settings: Any) -> int:
-    """Map cells per scenario cell for a planner stack: the map at the global costmap's own
-    ``resolution`` (Jazzy's 0.05 m: 20 per 1 m cell), as a real map server gives it; without one,
-    ``settings.map_upsample``."""
-    from ..problems.robot.config import RobotConfig
+def cell_metres(problem_file: Path) -> float:
+    """The scenario's cell size: ``problem_config.resolution`` of the session's problem file (1 m
+    when it says none, or there is none)."""
+    import yaml
 
+    try:
+        config = yaml.safe_load(problem_file.read_text()) or {}
+    except OSError:
+        return 1.0
+    return float((config.get("problem_config") or {}).get("resolution", 1.0))
+
+
+def planner_upsample(params: dict, settings: Any, cell_m: float = 1.0) -> int:
+    """Map cells per scenario cell (``cell_m`` metres) for a planner stack: the map at the global
+    costmap's own ``resolution`` (Jazzy's 0.05 m: 20 per 1 m cell, 5 per 0.25 m cell), as a real map
+    server gives it; without one, ``settings.map_upsample``."""
     costmap = (((params.get("global_costmap") or {}).get("global_costmap") or {}).get("ros__parameters")) or {}
     try:
-        k = round(RobotConfig().resolution / float(costmap["resolution"]))
+        k = round(float(cell_m) / float(costmap["resolution"]))
     except (KeyError, TypeError, ValueError, ZeroDivisionError):
         return settings.map_upsample
     return k if k >= 1 else settings.map_upsample
@@ -180,7 +190,7 @@ def stack_nodes(settings: Any, prepared: Prepared, problem_file: Path, bag: Path
     recorder = NodeSpec("recorder", "recorder", {"output": str(bag), "extra_topics": ",".join(recorded)})
     if planner:
         try:
-            nodes = planner_stack(prepared.params, prepared.path, tag, planner_upsample(prepared.params, settings),
+            nodes = planner_stack(prepared.params, prepared.path, tag, planner_upsample(prepared.params, settings, cell_metres(problem_file)),
                                   settings.start_timeout, str(problem_file), "")
         except ValueError as exc:
             from ..core.errors import BadInput

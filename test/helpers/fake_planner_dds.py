@@ -10,12 +10,15 @@
 * ``compute_path_to_pose``: ``straight`` answers a straight line of poses from the goal's start to
   its goal, whatever lies between (so a wall between them is the oracle's FAIL(collision));
   ``refuse`` answers NO_VALID_PATH (208) to every goal (so a reachable goal is a missed path);
+  ``crash_blocked`` answers as ``straight`` unless the line crosses an occupied cell, and then dies
+  by SIGSEGV, as a planner that segfaults on a map would (the same map crashes it again);
 * the status and feedback topics are offered (an action server is up only with them) but stay silent:
   the adapter reads only SendGoal and GetResult.
 """
 from __future__ import annotations
 
 import os
+import signal
 import sys
 import time
 from pathlib import Path
@@ -69,12 +72,14 @@ class PathPlanner:
         self.results: dict[bytes, object] = {}
         self.waiting: dict[bytes, object] = {}
         self.maps = 0
+        self.occupied, self.info = None, None
 
     def on_map(self, msg) -> None:
         info = msg.info
         occupied = np.asarray(msg.data, dtype=np.int16).reshape(int(info.height), int(info.width)) >= 100
         make = self.node.new_message
         self.maps += 1
+        self.occupied, self.info = occupied, info
         self.costmap.publish(make("nav_msgs/msg/OccupancyGrid", header=conversions.header(make, self.node.now_ns()),
                                   info=info, data=inflated(occupied).reshape(-1)))
         print(f"costmap {self.maps}: {info.width} x {info.height}", flush=True)
@@ -88,12 +93,24 @@ class PathPlanner:
         else:
             n = max(2, int(np.hypot(g.x - s.x, g.y - s.y) / 0.05) + 1)
             points = np.linspace([s.x, s.y], [g.x, g.y], n)
+            if self.mode == "crash_blocked" and self.blocked(points):
+                print("crash_blocked: the line crosses a wall: SIGSEGV", flush=True)
+                os.kill(os.getpid(), signal.SIGSEGV)
             result = self.reg.new(PLAN + "_Result", path=conversions.path(make, self.node.now_ns(), points))
             status = SUCCEEDED
         key = bytes(bytearray(request.goal_id.uuid))
         self.results[key] = self.reg.new(PLAN + "_GetResult_Response", status=status, result=result)
         print(f"plan {self.mode}: ({s.x:.2f}, {s.y:.2f}) -> ({g.x:.2f}, {g.y:.2f})", flush=True)
         return self.reg.new(PLAN + "_SendGoal_Response", accepted=True)
+
+    def blocked(self, points: np.ndarray) -> bool:
+        """Does the line cross an occupied cell of the last map?"""
+        if self.occupied is None:
+            return False
+        res, o = float(self.info.resolution), self.info.origin.position
+        cols = ((points[:, 0] - o.x) / res).astype(int).clip(0, self.occupied.shape[1] - 1)
+        rows = ((points[:, 1] - o.y) / res).astype(int).clip(0, self.occupied.shape[0] - 1)
+        return bool(self.occupied[rows, cols].any())
 
     def on_result(self, request, token):
         key = bytes(bytearray(request.goal_id.uuid))

@@ -5,7 +5,10 @@
 planner (test/helpers/fake_planner_dds.py, not Nav2) builds its costmap from our /map and answers
 a straight line from start to goal (``straight``) or NO_VALID_PATH to every goal (``refuse``). Our
 oracle must then call a line through a wall FAIL(collision), a line over a clear floor PASS, and a
-refusal of a reachable goal a missed path with the reference planner's certificate.
+refusal of a reachable goal a missed path with the reference planner's certificate. A planner that
+dies by SIGSEGV on a map (``crash_blocked``) is FAIL(sut_crashed), the planner stack is restarted as
+one unit and shows up again (its compute_path_to_pose server, not a navigator's topics), the map
+crashes it once more, and the next map passes on the fresh stack.
 """
 from __future__ import annotations
 
@@ -59,7 +62,7 @@ def run_planner_stack(tmp_path: Path, ros_domain: int, mode: str, names: tuple[s
     said: list[str] = []
     run_trials(load_suite([str(suite_file)], CONFIG), [prepared], settings, say=said.append)
     rows = TrialLog(results).rows()
-    assert len(rows) == len(names), "\n".join(said)
+    assert len(rows) >= len(names), "\n".join(said)  # a crash is run once more
     return rows
 
 
@@ -79,3 +82,17 @@ def test_a_refusal_where_a_path_exists_is_a_missed_path_with_the_certificate(tmp
     (row,) = run_planner_stack(tmp_path, ros_domain, "refuse", ("wall",))
     assert row["failure_kind"] == "requirement" and row["detail"].startswith("missed_path: "), row["detail"]
     assert "error 208" in row["detail"] and "the reference planner found" in row["detail"]
+
+
+def test_a_planner_that_segfaults_on_a_map_is_a_crash_that_comes_back_and_the_restarted_stack_goes_on(
+        tmp_path, ros_domain, session_env):
+    rows = run_planner_stack(tmp_path, ros_domain, "crash_blocked", ("wall", "clear"))
+    kinds = [(r["scenario_name"], r["failure_kind"]) for r in rows]
+    assert kinds == [("wall", "sut_crashed"), ("wall", "sut_crashed"), ("clear", "none")], kinds
+    crash, again, clear = rows
+    assert "planner_server" in crash["detail"] and "SIGSEGV" in crash["detail"], crash["detail"]
+    assert again["crash_rerun_of"]["scenario_id"] == crash["scenario_id"]
+    for row in (crash, again):
+        restarted = {r["process"]: r for r in row["restarts"]}
+        assert set(restarted) >= {"planner_server", "lifecycle_manager_planner"}, row["restarts"]
+        assert all(r["ok"] for r in restarted.values())

@@ -68,6 +68,9 @@ class RobotConfig:
     person_radius: tuple = (0.2, 0.35)  # hazards: a person's radius [m]
     person_reach: float = 3.0  # hazards: a person walks this far on each side of its point on the route [m]
     clear_of_ends: float = 0.6  # hazards: obstacles and standing people keep this far from start and goal [m]
+    # hazards: walls may cover the start and goal areas (a planner's scenarios: starts and goals anywhere,
+    # walls anywhere; one on a wall is a refusal the reference proves right); false: those areas stay free
+    walls_over_ends: bool = False
     # threat: the robot's pace along the route when it times a person's meeting [m/s]; the stack's
     # own pace makes the timing match what it meets (MPPI's measured median: 0.39 m/s)
     threat_speed: float = 0.5

@@ -21,6 +21,8 @@ def keep_out_mask(config: RobotConfig, radius: int | None = None) -> np.ndarray:
     if config.scenario == "hazards":  # the start and goal may lie anywhere in their areas
         from ..robot_hazards import areas_mask
 
+        if config.walls_over_ends:  # walls anywhere, a start or goal on one included
+            return np.zeros((n, n), dtype=bool)
         return areas_mask(config, k)
     ys, xs = np.mgrid[0:n, 0:n]
     mask = np.zeros((n, n), dtype=bool)
