@@ -30,6 +30,7 @@ import tempfile
 from collections import Counter
 from datetime import datetime, timezone
 from pathlib import Path
+from statistics import median
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -109,7 +110,8 @@ def report() -> None:
         print(f"## {plugin}")
         for algorithm, runs in side.items():
             if runs:
-                print(f"- {algorithm}: {len(runs)} runs, {sum(r['scenarios'] for r in runs)} scenarios, distinct "
+                print(f"- {algorithm}: {len(runs)} runs, {sum(r['scenarios'] for r in runs)} scenarios, "
+                      f"{sum(r['findings'] for r in runs)} failing, distinct "
                       f"findings per hour {[round(r['distinct_per_hour'], 1) for r in runs]}, closest calls (m) "
                       f"{[r['closest_m'] for r in runs]}")
         for algorithm in ("ga", "nsga2"):
@@ -119,6 +121,10 @@ def report() -> None:
             tag = "" if min(len(a), len(b)) >= CLAIM_RUNS else f" (a hint: below {CLAIM_RUNS} runs a side)"
             u, p = greater_exact([r["distinct_per_hour"] for r in a], [r["distinct_per_hour"] for r in b])
             print(f"  {algorithm} > random on distinct findings per hour: U {u:g}, exact one-sided p {p:.4g}{tag}")
+            per_hour = lambda runs: [r["findings"] / (r["minutes"] / 60.0) for r in runs]  # noqa: E731
+            u, p = greater_exact(per_hour(a), per_hour(b))
+            print(f"  {algorithm} > random on failing scenarios per hour (medians {median(per_hour(a)):.0f} vs "
+                  f"{median(per_hour(b)):.0f}): U {u:g}, exact one-sided p {p:.4g}{tag}")
             near = lambda runs: [-(r["closest_m"] if r["closest_m"] is not None else 1e3) for r in runs]  # noqa: E731
             u, p = greater_exact(near(a), near(b))
             print(f"  {algorithm} closer than random (least clearance of a path that held): U {u:g}, exact "

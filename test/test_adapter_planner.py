@@ -286,3 +286,40 @@ def test_the_planner_stack_sends_maps_at_the_costmaps_own_resolution():
     assert planner_upsample(costmap(0.1), settings) == 10
     assert planner_upsample(costmap(0.05), settings, cell_m=0.25) == 5  # config/robot_planner.yaml's 0.25 m cells
     assert planner_upsample({}, settings) == 5 and planner_upsample(costmap("x"), settings) == 5
+
+
+def test_a_finding_is_written_as_nav2s_maintainers_ask_for_one(tmp_path):
+    """``ambiegen planner-report``'s files: the map map_server loads (the scenario's walls at the
+    costmap's resolution, rows flipped as map_server flips them), the params, a script for a stock
+    Jazzy with the start and goal the adapter sent, a runnable suite, and a page with the label and
+    k of N; an unknown label or scenario is one clear error."""
+    import json as _json
+
+    from ambiegen_ros.run_config import make_run
+    from ambiegen_ros.trials.planner_findings import map_of, read_pgm, write_finding
+
+    problem = make_run("robot", str(REPO / "config" / "robot_planner.yaml"), seed=0)[0]
+    G, lengths = problem.sample(1, np.random.default_rng(5))
+    scenario = problem.codec.from_rows(problem.codec.join(G, lengths))[0]
+    row = {"scenario_name": "case", "scenario": scenario.to_dict(), "failed": True, "failure_kind": "collision",
+           "detail": "collision: pose 3 ...", "versions": {"ambiegen_ros": "x"}, "when": "now"}
+    rows = [row] * 9 + [{**row, "failed": False, "failure_kind": "none"}]
+    params = REPO / "config" / "nav2" / "planners" / "theta_star.yaml"
+    page = write_finding(rows, "case", problem, params, 5, tmp_path, "fixed_on_main", "#5863, fixed by #5908", "why")
+    text = page.read_text()
+    assert "fixed on main, still in Jazzy" in text and "#5908" in text and "9 of 10 reruns" in text
+    occupied, res, start, goal = map_of(problem, scenario, 5)
+    assert res == pytest.approx(0.05) and occupied.shape == (250, 250)
+    assert np.array_equal(read_pgm(tmp_path / "case.pgm"), occupied)
+    assert occupied[::5, ::5].sum() == problem.environment(scenario).grid.sum()  # the same walls, finer
+    meta = (tmp_path / "case.yaml").read_text()
+    assert "resolution: 0.05" in meta and "image: case.pgm" in meta and "mode: trinary" in meta
+    script = (tmp_path / "case_reproduce.py").read_text()
+    compile(script, "case_reproduce.py", "exec")  # valid Python for the user's Jazzy
+    assert f"START, GOAL = {tuple(round(v, 4) for v in start)}" in script and "getPath" in script
+    assert (tmp_path / "case_params.yaml").read_text() == params.read_text()
+    assert _json.loads((tmp_path / "case_suite.json").read_text())["suite"][0]["scenario"] == row["scenario"]
+    with pytest.raises(ValueError, match="label"):
+        write_finding(rows, "case", problem, params, 5, tmp_path, "maybe", "", "")
+    with pytest.raises(ValueError, match="no row"):
+        write_finding(rows, "other", problem, params, 5, tmp_path, "new", "", "")

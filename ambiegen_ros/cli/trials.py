@@ -130,6 +130,24 @@ def register(sub) -> None:
                                    "--results.")
     _common(p, many=False, search=True)
     p.set_defaults(func=cmd_search, many=False)
+    p = sub.add_parser("planner-report", help="write a planner finding as Nav2's maintainers ask for one: map (yaml + "
+                                              "pgm), params, start and goal, a script for a stock Jazzy, reruns",
+                       description="From the rows of `ambiegen rerun --stack planner --repeat N`, one scenario's "
+                                   "finding as a page with its files (ambiegen_ros/trials/planner_findings.py): "
+                                   "the map as map_server loads it, at the costmap's resolution, the params, the "
+                                   "start and goal, a nav2_simple_commander script that asks planner_server alone "
+                                   "and checks the path on Nav2's own costmap, the picture and k of N reruns.")
+    p.add_argument("results", help="the rerun's results file (JSON lines)")
+    p.add_argument("--scenario", required=True, help="the scenario's name in the rows")
+    p.add_argument("--params", required=True, help="the params file the rows ran with")
+    p.add_argument("--config", required=True, help="the problem config the rows ran with")
+    p.add_argument("--label", required=True, choices=("new", "fixed_on_main", "known"),
+                   help="new | fixed_on_main (still in Jazzy: a backport request) | known")
+    p.add_argument("--references", default="", help="the tracker's issues or PRs, e.g. '#5863, fixed by #5908'")
+    p.add_argument("--explain", default="", help="a paragraph: why it is a bug, and whose")
+    p.add_argument("--picture", default="", help="the rerun's picture of the scenario (PNG)")
+    p.add_argument("-o", "--out", required=True, help="the folder of the page and its files")
+    p.set_defaults(func=cmd_planner_report)
 
 
 def _settings(args, results: Path):
@@ -326,3 +344,28 @@ def cmd_search(args) -> int:
     for picture in written.get("pictures", []):
         print(f"picture: {picture}")
     return code
+
+
+def cmd_planner_report(args) -> int:
+    import yaml
+
+    from ..run_config import make_run
+    from ..trials.planner_findings import write_finding
+    from ..trials.rows import TrialLog
+    from ..trials.session import planner_upsample
+
+    params = Path(args.params)
+    try:
+        loaded = yaml.safe_load(params.read_text()) or {}
+    except (OSError, yaml.YAMLError) as exc:
+        raise BadInput(f"--params {params}: {exc}") from None
+    problem = make_run("robot", args.config, seed=0)[0]
+    upsample = planner_upsample(loaded, argparse.Namespace(map_upsample=5), problem.config.resolution)
+    try:
+        page = write_finding(TrialLog(Path(args.results)).rows(), args.scenario, problem, params, upsample,
+                             Path(args.out), args.label, args.references or "no reference yet", args.explain,
+                             Path(args.picture) if args.picture else None)
+    except ValueError as exc:
+        raise BadInput(str(exc)) from None
+    print(f"written: {page}")
+    return 0

@@ -251,3 +251,20 @@ def test_the_block_search_finds_people_in_doorways(problem):
     assert blocker.evaluate_scenarios([best]).f1[0] == pytest.approx(blocker.hazard_features(best)["block"])
     with pytest.raises(ScenarioError, match="block"):
         get_problem("robot", {"profile": "refined", "objective": "block"})
+
+
+def test_walls_may_lie_over_the_start_and_goal_areas_only_when_the_config_says_so():
+    """config/robot_planner.yaml (issue 68): a planner's scenarios put walls anywhere, the start and
+    goal areas included (``walls_over_ends``); the hazards scenarios keep those areas free."""
+    from ambiegen_ros.problems.robot.grids import build_grids
+
+    base = {"profile": "refined", "scenario": "hazards", "max_hazards": 0, "resolution": 0.25,
+            "start_area": [[1, 1], [48, 48]], "goal_area": [[1, 1], [48, 48]]}
+    kept, over = get_problem("robot", base), get_problem("robot", {**base, "walls_over_ends": True})
+    G, lengths = over.sample(20, np.random.default_rng(3))
+    walls = lambda p: build_grids(G[:, :hz.N_WALLS, :3], np.full(20, hz.N_WALLS), p.config)[:, 1:-1, 1:-1]  # noqa: E731
+    assert not walls(kept).any()  # the areas cover the room: no wall anywhere
+    assert walls(over).sum(axis=(1, 2)).min() > 100  # the paper's walls, over the whole room
+    ends = [over.environment(sc) for sc in over.codec.from_rows(over.codec.join(G, lengths))]
+    on_a_wall = sum(bool(e.grid[e.start[1], e.start[0]] or e.grid[e.goal[1], e.goal[0]]) for e in ends)
+    assert on_a_wall > 0  # a start or goal on a wall: a scenario the reference refuses, as it should

@@ -181,6 +181,27 @@ def test_a_corner_pose_is_lethal_only_when_every_cell_it_touches_is():
     assert checker.centre_lethal(4 * RES, 4 * RES) is not None
 
 
+def test_a_corner_aligned_pose_in_the_cells_its_planner_cleared_is_a_half_cell_offset_not_a_collision():
+    """NavFn and Smac 2D put their poses on the corners of the cells they checked: such a pose may
+    come a few millimetres inside the inscribed radius of a lethal centre while every cell it
+    touches is below INSCRIBED, as Nav2 reads it. Only a pose that both readings put in collision
+    (its disc holds a lethal centre, and its cells are all INSCRIBED or above) is flagged."""
+    cm = one_obstacle()
+    checker = O.CollisionChecker(cm, P.navfn())
+    lethal = np.array(centre(30, 30))
+    offsets, flagged = [], []
+    for cx in range(24, 38):
+        for cy in range(24, 38):
+            x, y = cx * RES, cy * RES  # a cell corner
+            disc = math.hypot(*(lethal - (x, y))) < INSCRIBED_R
+            cells = cm.cells_at(x, y)
+            inscribed = all(cm.cost[c[1], c[0]] >= INSCRIBED for c in cells)
+            hit = bool(checker.hits((x, y, 0.0))[0])
+            assert hit == (disc and inscribed), (cx, cy)
+            (offsets if disc and not inscribed else flagged if hit else []).append((cx, cy))
+    assert offsets and flagged  # both cases occur around one obstacle
+
+
 RECT = np.array([[0.3, 0.15], [-0.3, 0.15], [-0.3, -0.15], [0.3, -0.15]])
 
 

@@ -12,10 +12,14 @@ checks are never trusted: each oracle recomputes from the cost array.
 * round robot: the robot's inscribed disc (the inscribed radius of Nav2's 16-gon,
   ``footprint.cpp`` ``makeFootprintFromRadius``/``calculateMinAndMaxDistances``; the radius
   behind the costmap's 253 ring, ``InflationLayer::computeCost``) holds the centre of a LETHAL
-  cell, strictly. That is what "the centre in INSCRIBED (253) or above" means, taken at the pose
-  itself rather than at the centre of its cell: a 253 cell is 253 because *its centre* is within
-  the inscribed radius, and a pose near the far edge of such a cell may be clear of every lethal
-  cell (then it is no failure);
+  cell, strictly, **and** the pose's own cell is INSCRIBED (253) or above, every cell it touches
+  when it lies on a cell edge or corner. Both readings of "the centre in INSCRIBED or above" must
+  agree: at the pose itself (a 253 cell is 253 because *its centre* is within the inscribed
+  radius, and a pose near the far edge of such a cell may be clear of every lethal cell) and at
+  its cell, as Nav2's own checkers read it (``Costmap2D::worldToMap``). A corner-aligned path
+  (NavFn's, Smac 2D's: poses on the corners of the cells they checked) that comes a few
+  millimetres inside the inscribed radius of a wall while in the cells the planner cleared is a
+  half-cell offset, not a collision: the path holds, its clearance on the row (docs/planner_oracles.md);
 * polygon robot: the oriented footprint's outline cells as Nav2 rasterises them
   (``FootprintCollisionChecker::footprintCost``: each vertex's cell and the Bresenham line between
   them, ``nav2_util::LineIterator``) include a LETHAL cell, or a vertex leaves the map (Nav2 scores
@@ -66,7 +70,7 @@ import numpy as np
 import shapely
 from scipy.spatial import cKDTree
 
-from .costmap import LETHAL, NO_INFORMATION, Costmap, footprint_from_radius, inscribed_radius
+from .costmap import INSCRIBED, LETHAL, NO_INFORMATION, Costmap, footprint_from_radius, inscribed_radius
 from .reference import ReferenceResult, reference_plan
 from .rules import PlannerRules
 
@@ -158,12 +162,17 @@ class CollisionChecker:
             cells = self._disc_hits(x, y)
             if centre is not None:
                 return f"its centre is in lethal cell {centre}", sorted(set(cells) | {centre})
-            if cells:
+            if cells and self.in_inscribed_cells(x, y):
                 d = math.hypot(*(np.array(self.costmap.map_to_world(*cells[0])) - (x, y)))
                 return (f"lethal cell {cells[0]}'s centre is {d:.3f} m from it, inside the inscribed radius "
-                        f"{self.inscribed:.3f} m"), cells
+                        f"{self.inscribed:.3f} m, in a cell of cost >= {INSCRIBED}"), cells
             return "", []
         return self._polygon_hits(x, y, 0.0 if math.isnan(yaw) else yaw, centre)
+
+    def in_inscribed_cells(self, x: float, y: float) -> bool:
+        """Is every cell the pose lies in (two or four on an edge or corner) of cost INSCRIBED or above?"""
+        cells = self.costmap.cells_at(x, y)
+        return bool(cells) and all(INSCRIBED <= self.costmap.cost[c[1], c[0]] <= LETHAL for c in cells)
 
     def _disc_hits(self, x: float, y: float) -> list[tuple[int, int]]:
         if self.tree is None:
