@@ -13,7 +13,7 @@ import shutil
 import sys
 from pathlib import Path
 
-from .common import BadInput
+from .common import BadInput, add_config_option
 
 STACK_HELP = ("nd: our Nearness Diagram robot on Nav2's topics (no ROS needed); bringup: nav2_bringup's "
               "navigation_launch.py with the params; ours: the minimum Nav2 (controller, planner, behaviours, BT "
@@ -27,7 +27,6 @@ STACK_HELP = ("nd: our Nearness Diagram robot on Nav2's topics (no ROS needed); 
 def _common(p: argparse.ArgumentParser, many: bool, search: bool = False) -> None:
     from ..core.names import ALGORITHMS, PROFILES
     from ..trials.configs import STACKS
-    from .common import add_config_option
 
     if search:
         p.add_argument("--algorithm", choices=ALGORITHMS, default="ga", help="the search (default ga; random: "
@@ -140,7 +139,7 @@ def register(sub) -> None:
     p.add_argument("results", help="the rerun's results file (JSON lines)")
     p.add_argument("--scenario", required=True, help="the scenario's name in the rows")
     p.add_argument("--params", required=True, help="the params file the rows ran with")
-    p.add_argument("--config", required=True, help="the problem config the rows ran with")
+    add_config_option(p)
     p.add_argument("--label", required=True, choices=("new", "fixed_on_main", "known"),
                    help="new | fixed_on_main (still in Jazzy: a backport request) | known")
     p.add_argument("--references", default="", help="the tracker's issues or PRs, e.g. '#5863, fixed by #5908'")
@@ -359,6 +358,8 @@ def cmd_planner_report(args) -> int:
         loaded = yaml.safe_load(params.read_text()) or {}
     except (OSError, yaml.YAMLError) as exc:
         raise BadInput(f"--params {params}: {exc}") from None
+    if not args.config:
+        raise BadInput("--config: the run config the rows ran with (e.g. config/robot_planner.yaml)")
     problem = make_run("robot", args.config, seed=0)[0]
     upsample = planner_upsample(loaded, argparse.Namespace(map_upsample=5), problem.config.resolution)
     try:
