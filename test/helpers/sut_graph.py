@@ -39,6 +39,10 @@ class Procs:
     def log(self, name: str) -> str:
         return (self.log_dir / f"{name}.log").read_text(errors="replace")
 
+    def exited(self) -> list[str]:
+        """The processes that ended (a crash ends a wait on them at once, not at its safety net)."""
+        return [name for name, proc in self.procs.items() if proc.poll() is not None]
+
     def logs(self) -> str:
         return "\n".join(f"--- {n}\n{self.log(n)[-2500:]}" for n in self.procs)
 
@@ -104,7 +108,10 @@ class Driver:
         for i, sc in enumerate(scenarios):
             self.suite_driver.send(run_id, i, sc)
 
-    def wait(self, run_id: str, count: int, timeout: float) -> list:
-        done = lambda: self.suite_driver.resend_lost() or sum(k[0] == run_id for k in self.results) >= count  # noqa: E731
+    def wait(self, run_id: str, count: int, timeout: float, procs: "Procs | None" = None) -> list:
+        """The results of ``run_id``'s first ``count`` scenarios (None where none came); a process of
+        ``procs`` that exits ends the wait at once."""
+        done = lambda: (self.suite_driver.resend_lost() or sum(k[0] == run_id for k in self.results) >= count  # noqa: E731
+                        or bool(procs and procs.exited()))
         self.node.spin_until(done, timeout)
         return [self.results.get((run_id, i)) for i in range(count)]

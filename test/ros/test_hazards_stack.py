@@ -74,8 +74,8 @@ def test_the_stack_sees_only_the_map_and_the_world_gives_the_in_process_verdicts
     driver = Driver(node, problem)
     driver.wait_matched()
     driver.send("hz", scs)
-    got = driver.wait("hz", len(scs), 1200)  # a safety net: the wait ends with the last result
-    assert all(got), procs.logs()
+    got = driver.wait("hz", len(scs), 1200, procs)  # a safety net: the wait ends with the last result, or a crash
+    assert all(got), f"exited: {procs.exited()}\n{procs.logs()}"
     for i, (res, wire) in enumerate(zip(got, wires)):
         assert res.failure_kind == wire.failure_kind, (i, res.detail, wire.detail)
         assert np.array_equal(np.asarray(res.trajectory), wire.trajectory), i
