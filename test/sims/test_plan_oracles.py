@@ -482,3 +482,38 @@ def test_the_certificate_is_drawn_over_the_costmap():
     x, y = ref.cells[len(ref.cells) // 2]
     assert tuple(img[99 - y, x]) == (0, 170, 0)  # row 0 of the picture is the map's top
     assert tuple(img[0, 0]) == (0, 0, 0) and tuple(img[50, 50]) == (0, 0, 0)  # walls are black
+
+
+def recorded(name: str):
+    """A planner's answer recorded from Jazzy's own planner_server (test/data/planner_recorded:
+    the global costmap it published, as an OccupancyGrid, and the path, from the run's bag)."""
+    from pathlib import Path
+
+    data = np.load(Path(__file__).resolve().parents[1] / "data" / "planner_recorded" / f"{name}.npz")
+    grid = data["grid"]
+    cm = Costmap.from_costmap_grid(grid.reshape(-1), grid.shape[1], grid.shape[0], float(data["resolution"]),
+                                   *map(float, data["origin"]))
+    path = np.column_stack([data["path"], np.full(len(data["path"]), np.nan)])
+    return cm, path, tuple(data["start"]), tuple(data["goal"])
+
+
+def test_jazzys_theta_star_path_through_inscribed_cells_is_a_collision():
+    """Recorded (docs/results/nav2/planner_bugs/theta_star_los): 49 poses at the centres of cells of
+    cost 253, along a wall; the oracles flag the first, whatever else holds."""
+    cm, path, start, goal = recorded("theta_star_inscribed")
+    judged = O.judge_plan(cm, P.theta_star(), start, goal, path=path)
+    assert judged.failed and judged.verdict.kind == "collision", judged.verdict.detail
+    inscribed = [i for i, (x, y, _) in enumerate(path) if cm.cost[cm.world_to_map(x, y)[::-1]] >= INSCRIBED]
+    assert len(inscribed) == 49 and judged.verdict.index in inscribed  # the first whose disc holds a lethal centre
+
+
+def test_jazzys_smac_2d_path_on_cell_corners_holds():
+    """Recorded from our first sweep: Smac 2D's poses lie on the corners of the cells it cleared, one
+    of them 0.215 m from a lethal centre (inside the 0.2158 m inscribed radius) while every cell it
+    touches is below 253: a half-cell offset, not a collision (both readings must agree)."""
+    cm, path, start, goal = recorded("smac_2d_corners")
+    judged = O.judge_plan(cm, P.smac_2d(), start, goal, path=path)
+    assert not judged.failed, judged.verdict.detail
+    checker = O.CollisionChecker(cm, P.smac_2d())
+    grazing = [i for i, pose in enumerate(path) if checker._disc_hits(pose[0], pose[1])]
+    assert grazing and all(not checker.in_inscribed_cells(*path[i, :2]) for i in grazing)
