@@ -116,6 +116,26 @@ def test_a_suite_file_names_its_scenarios_and_its_problem_settings(tmp_path):
     assert suite.entries[0].key == scenario_key(suite.entries[0].scenario, suite.problem_config)
 
 
+def test_the_failures_of_a_results_file_are_a_suite(tmp_path):
+    """``rerun RESULTS.jsonl``: a search's failing rows, once each, by their rows' names; a pass, a
+    known failure and a repeat are left out, and rows without a failure are one clear line."""
+    settings = {"profile": "refined", "scenario": "hazards", "goal": [14, 14], "start_area": [[1, 1], [4, 4]],
+                "max_hazards": 6, "route_cap": 100.0}
+    made = [dict(key=f"k{i}", label="nd", scenario=c["scenario"], scenario_name=f"g1-{i}", problem="robot",
+                 problem_config=settings,
+                 failed=i != 1, known_failure=("navfn_cap" if i == 2 else None), verdict="FAIL(collision)", detail="d")
+            for i, c in enumerate(CASES["cases"][:4])]
+    rows = tmp_path / "search.jsonl"
+    rows.write_text("".join(json.dumps(r) + "\n" for r in made + [made[0]]))
+    suite = load_suite([str(rows)])
+    assert [e.name for e in suite.entries] == ["g1-0", "g1-3"]  # the pass, the known one, the repeat: out
+    assert suite.problem_config["scenario"] == "hazards"
+    none = tmp_path / "passes.jsonl"
+    none.write_text(json.dumps(made[1]) + "\n")
+    with pytest.raises(BadInput, match="no failure in these rows"):
+        load_suite([str(none)])
+
+
 def test_a_bad_suite_is_one_line_naming_the_entry(tmp_path):
     bad = tmp_path / "bad.json"
     broken = json.loads(json.dumps(CASES["cases"][0]["scenario"]))

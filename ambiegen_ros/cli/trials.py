@@ -42,7 +42,8 @@ def _common(p: argparse.ArgumentParser, many: bool, search: bool = False) -> Non
                        "in_the_loop 100000, the hours decide; surrogate: --config's budget)")
     else:
         p.add_argument("suite", nargs="+", metavar="SUITE", help="suite files (JSON: a search's suite.json, a "
-                       "write-up's *_suite.json, one scenario) or a campaign's MCAP (its certified failures)")
+                       "write-up's *_suite.json, one scenario), a campaign's MCAP (its certified failures) or a "
+                       "results file (.jsonl of rerun, compare or stack-search: its failures, once each)")
     p.add_argument("--stack", required=True, choices=STACKS, help=STACK_HELP)
     p.add_argument("--params", action="append", default=[], metavar="[LABEL=]FILE[+FILE...]",
                    help=("a configuration: params files merged in order (the first is the stack's, e.g. Jazzy's "

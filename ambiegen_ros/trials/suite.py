@@ -108,9 +108,29 @@ def _log_entries(path: Path) -> tuple[list[dict], dict]:
     return entries, {"problem": problem, "problem_config": settings}
 
 
+def _row_entries(path: Path) -> tuple[list[dict], dict]:
+    """The failures of a results file (``rerun``, ``compare``, ``stack-search``: JSON lines), once each
+    scenario (by its key), named as their rows name them; the rows' problem settings."""
+    from .rows import TrialLog
+
+    try:
+        rows = TrialLog(path).rows()
+    except (OSError, ValueError) as exc:
+        raise BadInput(f"{path}: cannot read its rows ({exc})") from None
+    entries, seen = [], set()
+    for row in rows:
+        if row.get("failed") and not row.get("known_failure") and row.get("key") not in seen:
+            seen.add(row.get("key"))
+            entries.append({"scenario": row["scenario"], "name": row.get("scenario_name") or row.get("key"),
+                            "note": f"{row.get('verdict', '')} ({row.get('detail', '')})"})
+    found = {k: rows[0][k] for k in ("problem", "problem_config") if rows and k in rows[0]}
+    return entries, found
+
+
 def load_suite(paths: list[str], config_file: str | None = None, profile: str | None = None) -> Suite:
-    """The scenarios of ``paths`` (suite files and campaign logs), checked by their problem, with one
-    problem setting for all: ``config_file``'s, else the files' own (they must agree)."""
+    """The scenarios of ``paths`` (suite files, campaign logs, and the failures of a results file),
+    checked by their problem, with one problem setting for all: ``config_file``'s, else the files'
+    own (they must agree)."""
     from ..core.config import load_config_file
     from ..problems import get_problem
 
@@ -123,10 +143,11 @@ def load_suite(paths: list[str], config_file: str | None = None, profile: str | 
         path = Path(name)
         if not path.is_file():
             raise BadInput(f"{name}: no such file")
-        entries, found = _log_entries(path) if path.suffix == ".mcap" else _json_entries(path)
+        read = {".mcap": _log_entries, ".jsonl": _row_entries}.get(path.suffix, _json_entries)
+        entries, found = read(path)
         if not entries:
-            raise BadInput(f"{name}: no scenarios" + (" (no certified failures in this log)" if path.suffix == ".mcap"
-                                                       else ""))
+            raise BadInput(f"{name}: no scenarios" + {".mcap": " (no certified failures in this log)",
+                                                       ".jsonl": " (no failure in these rows)"}.get(path.suffix, ""))
         settings.append((name, found))
         for i, entry in enumerate(entries):
             if not isinstance(entry, dict):
