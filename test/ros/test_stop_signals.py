@@ -54,7 +54,7 @@ def test_a_campaign_stops_its_nodes_and_finalises_its_log(tmp_path, ros_domain, 
         code = cmd.finish()
         assert code == 128 + sig, f"exit {code}:\n{cmd.text()[-3000:]}"
         assert f"stopped by {sig.name}" in cmd.text()
-        assert cmd.left() == [], cmd.left()
+        assert wait_gone(set(cmd.left()), bound=60) == []  # a child may take a moment after its parent (multiprocessing's resource tracker)
         summary = json.loads((out / "summary.json").read_text())
         assert summary["interrupted"] and summary["stopped_by"] == sig.name
         assert summary["exit_codes"]["recorder"] == 0  # it finished its file, not killed
@@ -131,7 +131,7 @@ def test_an_experiment_stops_its_pool_and_resumes(tmp_path, how, sig):
         cmd.stop(sig)
         code = cmd.finish()
         assert code == 128 + sig, f"exit {code}:\n{cmd.text()[-3000:]}"
-        assert cmd.left() == [], cmd.left()
+        assert wait_gone(set(cmd.left()), bound=60) == []  # a child may take a moment after its parent (multiprocessing's resource tracker)
         kept = run_files(out)
         for name, text in kept.items():
             assert json.loads(text)["run"] in (0, 1, 2), name  # whole files only
