@@ -50,7 +50,7 @@ from .judge import RunView, ScenarioJudge
 from .params import Param
 from .samples import to_map_frame
 
-GOAL_RESEND_S = 2.0  # wall seconds a goal may go unanswered (no status, no plan) before it goes again
+GOAL_RESEND_S = 10.0  # wall seconds a goal may go unanswered (no status, no plan) before it goes again
 GOAL_RESENDS = 3  # ... at most this often
 
 ROBOT_PARAMS = (
