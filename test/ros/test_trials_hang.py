@@ -32,6 +32,7 @@ from ambiegen_ros.trials.faults import parse_fault  # noqa: E402
 from ambiegen_ros.trials.rows import TrialLog  # noqa: E402
 from ambiegen_ros.trials.runner import TrialSettings, run_trials  # noqa: E402
 from ambiegen_ros.trials.suite import load_suite  # noqa: E402
+from ambiegen_ros.trials.reruns import starved  # noqa: E402
 from ambiegen_ros.trials.supervise import SCHEDULED_FLOOR_S, Scheduling, Watch  # noqa: E402
 
 pytestmark = pytest.mark.skipif(os.environ.get("AMBIEGEN_TRANSPORT", "auto") == "rclpy"
@@ -59,9 +60,12 @@ def run_on_fake_nav2(tmp_path: Path, ros_domain: int, controller: str, patience_
     prepared = prepare(StackConfig("fake", (str(PARAMS),)), "bringup", str(package_file(*OVERLAY_FILE)), 1.0, bags)
     said: list[str] = []
     run_trials(load_suite([str(suite_file)], CONFIG), [prepared], settings, say=said.append)
-    rows = TrialLog(results).rows()
-    assert rows, "\n".join(said)
-    folder = Path(rows[0]["bag"]).parent
+    everything = TrialLog(results).rows()
+    assert everything, "\n".join(said)
+    folder = Path(everything[0]["bag"]).parent
+    # a run the machine starved (a goal acknowledged after 1 s, say: seen with the suite's two workers)
+    # is an error record of its own, run again at once, never a run of the stack: not these tests' subject
+    rows = [r for r in everything if not starved(r)]
     events = [json.loads(line) for line in (folder / "events.jsonl").read_text().splitlines()] \
         if (folder / "events.jsonl").exists() else []
     return rows, folder, events
@@ -85,7 +89,7 @@ def test_a_held_robot_with_live_feedback_is_no_crash(tmp_path, ros_domain, sessi
     assert not [e for e in events if e["event"] in ("death", "restart")], events
     # what the watch faced: commands during the run, then none for longer than hang_after
     held = held_for(folder / "logs" / "nav2.log")
-    assert len(held) == 1 and held[0] > HANG_AFTER, held
+    assert held and held[-1] > HANG_AFTER, held  # one hold per goal (a starved run's goal held too)
     from mcap.reader import make_reader
 
     with open(row["bag"], "rb") as fh:
