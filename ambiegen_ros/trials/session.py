@@ -654,12 +654,13 @@ class StackSession:
         return {ep.gid for topic in self._signs(name) for ep in self.node.publishers_info(topic)}
 
     def _gone(self, name: str, before: set[bytes]) -> bool:
-        """The dead part's endpoints are off the graph: one of those seen before the kill has left (a
-        process's endpoints leave together; another stack part's on the same topic stay). The
-        adapter and the recorder: the driver's scenarios have no reader but its own."""
+        """The dead parts' endpoints are off the graph: none of those seen before the kill is left
+        (the whole unit was killed; each participant leaves at the end of its own lease, a frozen
+        one's earlier than the rest). The adapter and the recorder: the driver's scenarios have no
+        reader but its own."""
         if name in ("sut_adapter", "recorder"):
             return self.driver.pub.subscription_count() <= 1
-        return not before or not before <= self._endpoints(name)
+        return not (before & self._endpoints(name))
 
     def _shows_up(self, name: str, before: set[bytes] = frozenset()) -> bool:
         """The restarted part is on the graph: a publisher on each of its signs that was not there
