@@ -352,6 +352,7 @@ def cmd_planner_report(args) -> int:
     from ..run_config import make_run
     from ..trials.planner_findings import write_finding
     from ..trials.rows import TrialLog
+    from ..trials.runner import TrialSettings
     from ..trials.session import planner_upsample
 
     params = Path(args.params)
@@ -362,7 +363,8 @@ def cmd_planner_report(args) -> int:
     if not args.config:
         raise BadInput("--config: the run config the rows ran with (e.g. config/robot_planner.yaml)")
     problem = make_run("robot", args.config, seed=0)[0]
-    upsample = planner_upsample(loaded, argparse.Namespace(map_upsample=5), problem.config.resolution)
+    # without a costmap resolution in the params, the runs' own default (TrialSettings), not a copy of it
+    upsample = planner_upsample(loaded, TrialSettings, problem.config.resolution)
     try:
         page = write_finding(TrialLog(Path(args.results)).rows(), args.scenario, problem, params, upsample,
                              Path(args.out), args.label, args.references or "no reference yet", args.explain,
