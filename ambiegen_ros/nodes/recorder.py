@@ -1,5 +1,10 @@
 """`recorder`: writes every topic of a run, as raw CDR bytes (no decoding), to one MCAP file.
 
+Each message's log time is when the recorder took it and its publish time when its writer sent it
+(the sample's source timestamp, as rosbag2 keeps a send time): a recorder that falls behind on a
+loaded machine logs a fast run's last states after its result, but their publish times keep the
+order in which they were sent.
+
 The file follows the ROS 2 MCAP profile (schemas, ``offered_qos_profiles``, type hashes,
 summary), so ``ros2 bag info/play`` and Foxglove open it. The run's config, seed and versions are
 stored as MCAP metadata when the latched ``RunConfig`` arrives. The log is flushed every
@@ -135,11 +140,11 @@ class Recorder:
         is_config = topic == topics.RUN_CONFIG
         vital = topic in VITAL_TOPICS
 
-        def on_bytes(data: bytes, receive_ns: int) -> None:
+        def on_bytes(data: bytes, receive_ns: int, source_ns: int) -> None:
             if self.cannot_write is not None:
                 return
-            try:
-                self.log.write(channel, data, receive_ns)
+            try:  # log time: when taken here; publish time: when its writer sent it (rosbag2's send time)
+                self.log.write(channel, data, receive_ns, source_ns)
             except OSError as exc:  # the disk is full (or the file may grow no more): stop, keep what is written
                 self.stop_writing(exc)
                 return

@@ -9,6 +9,7 @@ helpers here.
 """
 from __future__ import annotations
 
+import inspect
 import re
 import time
 from dataclasses import dataclass, field
@@ -114,8 +115,10 @@ class InputGuard:
             self.logger.warning(f"dropped a sample on {topic}: {what} ({s.summary()})")
 
     def wrap(self, topic: str, callback: Callable, raw: bool,
-             decode: Callable[[bytes], Any]) -> Callable[[bytes, int], None]:
-        def deliver(data, receive_ns: int | None = None) -> None:
+             decode: Callable[[bytes], Any]) -> Callable[..., None]:
+        timed = raw and takes_source_time(callback)
+
+        def deliver(data, receive_ns: int | None = None, source_ns: int | None = None) -> None:
             self.stats.taken += 1
             size = len(data)
             if size > self.max_bytes:
@@ -123,6 +126,8 @@ class InputGuard:
                 return
             if raw:
                 args = (data, time.time_ns() if receive_ns is None else receive_ns)
+                if timed:  # the writer's clock when it sent the sample (the receive time when unknown)
+                    args += (args[1] if not source_ns else source_ns,)
             else:
                 try:
                     args = (decode(data),)
@@ -137,3 +142,16 @@ class InputGuard:
                 self._drop(topic, "handler_errors", f"handler raised {type(exc).__name__}: {str(exc)[:300]}")
 
         return deliver
+
+
+def takes_source_time(callback: Callable) -> bool:
+    """A raw callback whose third positional argument has no default gets the sample's source
+    timestamp there (rclpy's rule: a callback that takes the message info gets it; a default, as in
+    ``lambda d, t, name=name: ...``, is the caller's own)."""
+    try:
+        params = inspect.signature(callback).parameters.values()
+    except (TypeError, ValueError):  # no signature to read (a builtin): as before
+        return False
+    positional = (inspect.Parameter.POSITIONAL_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
+    required = [p for p in params if p.kind in positional and p.default is inspect.Parameter.empty]
+    return len(required) >= 3

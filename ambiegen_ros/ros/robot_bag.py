@@ -8,7 +8,11 @@ time: it ends at its result on ``/ambiegen/results``, and starts at the last ``/
 (else ``/goal_pose``, ``/map``) logged between its scenario message and that result, else at the
 scenario message (one system under test runs one scenario at a time, so that is its set-up).
 Within it every stream is put on one clock, the messages' header stamps: simulated seconds for a
-simulator in lockstep, whose run goes faster than the log's wall clock.
+simulator in lockstep, whose run goes faster than the log's wall clock. A recorder that lagged
+on a loaded machine took a fast run's last states after its result: a message logged after the
+result (up to the next scenario's message) still belongs to the run when its publish time (when
+it was sent, which the recorder keeps beside the time it took it) is not after the result's.
+Only those late ones are judged by publish time, so a host whose clock is off cuts nothing more.
 
 Poses are turned into the map frame with ``/tf``'s ``map -> <odom frame>`` (identity when absent)
 and each scan into map-frame beam ends from the pose at its stamp and ``/tf_static``'s sensor
@@ -35,7 +39,7 @@ from ..core.errors import BadInput
 from ..sims.outcome import Outcome
 from . import topics
 from .conversions import grid_from_message, outcome_from_message, path_points, safe_echo, stamp_ns, yaw_of
-from .runlog import iter_messages
+from .runlog import iter_timed
 
 ROBOT_SCENARIOS = topics.scenarios("robot")
 ODOM, SCAN, PLAN, TF, TF_STATIC = "/odom", "/scan", "/plan", "/tf", "/tf_static"
@@ -54,6 +58,11 @@ class ScenarioEntry:
     start_ns: int  # log time of its set-up (see the module docstring)
     end_ns: int  # log time of its result (of the bag's last message when there is none)
     goal_ns: int | None = None  # log time of its goal on /goal_pose, when logged
+    # its result's and goal's publish times (= log times in a bag that kept none), and the log time up
+    # to which a lagging recorder may still have logged the run (the next scenario's message, or the bag's end)
+    end_pub_ns: int | None = None
+    goal_pub_ns: int | None = None
+    read_end_ns: int | None = None
 
     @property
     def verdict(self) -> str:
@@ -129,22 +138,24 @@ def read_index(path: str | Path, run_id: str | None = None) -> BagIndex:
         raise BadInput(f"{path}: no such file")
     scenario_ns: dict[str, dict[int, int]] = {}  # run id -> scenario id -> log time of its first message
     scenario_msgs: dict[str, dict[int, Any]] = {}
-    results: dict[tuple[str, int], tuple[int, Any]] = {}  # (run id, scenario id) -> (log time, message)
-    setups: list[tuple[int, str]] = []
+    results: dict[tuple[str, int], tuple[int, Any, int]] = {}  # (run id, scenario id) -> (log time, message, publish time)
+    setups: list[tuple[int, str, int]] = []  # log time, topic, publish time
+    sent: list[int] = []  # log times of the scenario messages (of every run)
     other_problems: set[str] = set()
     wanted = {ROBOT_SCENARIOS, topics.RESULTS, *SETUP_TOPICS} | {topics.scenarios(p) for p in topics.SCENARIO_TYPES}
     try:
         counts, first_ns, last_ns = bag_summary(path)
-        for topic, _, log_ns, msg in _messages(path, wanted & set(counts)):
+        for topic, _, log_ns, pub_ns, msg in _messages(path, wanted & set(counts)):
             if topic == ROBOT_SCENARIOS:
                 sid = int(msg.meta.scenario_id)
                 if sid not in scenario_msgs.setdefault(msg.meta.run_id, {}):
                     scenario_msgs[msg.meta.run_id][sid] = msg
                     scenario_ns.setdefault(msg.meta.run_id, {})[sid] = log_ns
+                    sent.append(log_ns)
             elif topic == topics.RESULTS:
-                results.setdefault((msg.run_id, int(msg.scenario_id)), (log_ns, msg))
+                results.setdefault((msg.run_id, int(msg.scenario_id)), (log_ns, msg, pub_ns))
             elif topic in SETUP_TOPICS:
-                setups.append((log_ns, topic))
+                setups.append((log_ns, topic, pub_ns))
             else:
                 other_problems.add(topic.split("/")[2])
     except (McapError, OSError, ValueError, KeyError, IndexError, EOFError, struct.error) as exc:  # not an MCAP
@@ -154,6 +165,7 @@ def read_index(path: str | Path, run_id: str | None = None) -> BagIndex:
         what = f"a {'/'.join(sorted(other_problems))} run" if other_problems else "no scenario messages"
         raise BadInput(f"{path}: not a robot bag ({what}; nothing on {ROBOT_SCENARIOS})")
     runs = {}
+    sent.sort()
     for run, msgs in scenario_msgs.items():
         entries = {}
         for sid in sorted(msgs):
@@ -161,13 +173,16 @@ def read_index(path: str | Path, run_id: str | None = None) -> BagIndex:
             end = logged[0] if logged else last_ns
             start = scenario_ns[run][sid]
             for name in SETUP_TOPICS:  # the last set-up of this scenario, most telling topic first
-                found = [t for t, topic in setups if topic == name and start <= t < end]
+                found = [t for t, topic, _ in setups if topic == name and start <= t < end]
                 if found:
                     start = found[-1]
                     break
-            goals = [t for t, topic in setups if topic == "/goal_pose" and start <= t < end]
+            goals = [(t, pub) for t, topic, pub in setups if topic == "/goal_pose" and start <= t < end]
+            k = bisect.bisect_right(sent, end)  # the next scenario message after the result
             entries[sid] = ScenarioEntry(sid, outcome_from_message(logged[1]) if logged else None, start, end,
-                                         goals[-1] if goals else None)
+                                         goals[-1][0] if goals else None, logged[2] if logged else None,
+                                         goals[-1][1] if goals else None,
+                                         sent[k] if k < len(sent) else last_ns + 1)
         runs[run] = (entries, dict(sorted(msgs.items())))
     first = next(iter(runs))
     index = BagIndex(path, safe_echo(first), runs[first][0], runs[first][1], first_ns, counts, runs)
@@ -175,8 +190,8 @@ def read_index(path: str | Path, run_id: str | None = None) -> BagIndex:
 
 
 def _messages(path: Path, names: set[str], start_ns: int | None = None, end_ns: int | None = None):
-    """``runlog.iter_messages`` of these topics only: none named reads nothing (not the whole bag)."""
-    return iter_messages(path, names, start_ns, end_ns) if names else iter(())
+    """``runlog.iter_timed`` of these topics only: none named reads nothing (not the whole bag)."""
+    return iter_timed(path, names, start_ns, end_ns) if names else iter(())
 
 
 def bag_summary(path: Path) -> tuple[dict[str, int], int, int]:
@@ -215,19 +230,21 @@ def read_run(index: BagIndex, scenario_id: int) -> RobotRun:
     start = (float(msg.start.pose.position.x), float(msg.start.pose.position.y))
     goal = (float(msg.goal.pose.position.x), float(msg.goal.pose.position.y))
     frames = Frames()
-    for _, _, _, tf in _messages(index.path, {TF_STATIC} & set(index.topic_counts)):
+    for _, _, _, _, tf in _messages(index.path, {TF_STATIC} & set(index.topic_counts)):
         frames.add(tf, static=True)
-    odom: list[tuple[int, int, Any]] = []  # stamp, log time, message
+    odom: list[tuple[int, int, Any]] = []  # stamp, publish time, message
     scans: list[tuple[int, Any]] = []
     plans: list[tuple[int, Any]] = []
     markers: list[tuple[int, Any]] = []
     markers_topic = world_markers_topic(index.topic_counts)
     wanted = ({ODOM, SCAN, PLAN, TF} & set(index.topic_counts)) | ({markers_topic} if markers_topic else set())
-    for topic, _, log_ns, m in _messages(index.path, wanted, entry.start_ns, entry.end_ns + 1):
+    for topic, _, log_ns, pub_ns, m in _messages(index.path, wanted, entry.start_ns, entry.read_end_ns or entry.end_ns + 1):
+        if log_ns > entry.end_ns and (entry.end_pub_ns is None or pub_ns > entry.end_pub_ns):
+            continue  # logged after its result, and sent after it too (see the module docstring)
         if topic == TF:
             frames.add(m)
         elif topic == ODOM:
-            odom.append((stamp_ns(m.header), log_ns, m))
+            odom.append((stamp_ns(m.header), pub_ns, m))
         elif topic == markers_topic:
             if m.markers:  # an empty array carries no stamp (and no obstacle)
                 markers.append((stamp_ns(m.markers[0].header), m))
@@ -243,7 +260,7 @@ def read_run(index: BagIndex, scenario_id: int) -> RobotRun:
     first = int(np.argmax(near)) if near.any() else 0
     poses, stamps, odom = poses[first:], stamps[first:], odom[first:]
     t0 = int(stamps[0])
-    after_goal = [stamp for stamp, log_ns, _ in odom if entry.goal_ns is not None and log_ns >= entry.goal_ns]
+    after_goal = [stamp for stamp, pub_ns, _ in odom if entry.goal_pub_ns is not None and pub_ns >= entry.goal_pub_ns]
     body = odom[0][2].child_frame_id or "base_link"
     run = RobotRun(entry, index.run_id, grid, float(info.resolution),
                    (float(info.origin.position.x), float(info.origin.position.y)), start, goal,

@@ -24,13 +24,22 @@ def iter_messages(path: str | Path, only: set[str] | None = None, start_ns: int 
 
     ``start_ns``/``end_ns`` (log time, end excluded) read one stretch of a long bag: only the
     chunks that overlap it are decompressed and only its messages decoded."""
+    for topic, typename, log_ns, _, msg in iter_timed(path, only, start_ns, end_ns):
+        yield topic, typename, log_ns, msg
+
+
+def iter_timed(path: str | Path, only: set[str] | None = None, start_ns: int | None = None,
+               end_ns: int | None = None) -> Iterator[tuple[str, str, int, int, Any]]:
+    """``iter_messages`` with each message's publish time after its log time (when its writer sent
+    it; the log time in a bag that kept none)."""
     registry = get_registry()
     with open(path, "rb") as fh:
         reader = make_reader(fh)
         for schema, channel, message in reader.iter_messages(topics=list(only) if only else None, starting_at=start_ns,
                                                              ending_before=end_ns, log_time_order=True):
             typename = schema.name if schema else ""
-            yield channel.topic, typename, message.log_time, registry.deserialize(message.data, typename)
+            yield (channel.topic, typename, message.log_time, message.publish_time or message.log_time,
+                   registry.deserialize(message.data, typename))
 
 
 def read_metadata(path: str | Path) -> dict[str, dict[str, str]]:

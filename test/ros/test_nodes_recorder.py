@@ -81,15 +81,22 @@ def test_a_stopped_recorder_takes_what_was_already_on_its_way(nodes_factory, tes
     pub = node.create_publisher(topics.RESULT_TYPE, topics.RESULTS, Qos(reliable=True, depth=10, keep_all=True))
     assert node.spin_until(lambda: pub.subscription_count() >= 1, 120), nodes.log("recorder")  # a safety net
     make, burst = node.new_message, 3000
+    before = time.time_ns()
     for i in range(burst):
         pub.publish(make(topics.RESULT_TYPE, run_id="burst", scenario_id=i, worker="w", detail="x" * 200))
+    after = time.time_ns()
     recorder.send_signal(signal.SIGINT)
     node.finish_io(ack_s=60.0)  # this side: until the recorder acknowledged all (a safety net of a bound)
     assert nodes.wait("recorder", 120) == 0, nodes.log("recorder")
     with open(mcap, "rb") as fh:
-        ids = [get_registry().deserialize(m.data, topics.RESULT_TYPE).scenario_id
-               for _, ch, m in make_reader(fh).iter_messages() if ch.topic == topics.RESULTS]
+        logged = [(get_registry().deserialize(m.data, topics.RESULT_TYPE).scenario_id, m.publish_time, m.log_time)
+                  for _, ch, m in make_reader(fh).iter_messages() if ch.topic == topics.RESULTS]
+    ids = [sid for sid, _, _ in logged]
     assert sorted(ids) == list(range(burst)), f"{burst - len(set(ids))} of {burst} results lost"
+    # each message's publish time is when this side sent it (in the order sent); its log time when the recorder took it
+    sent = [published for _, published, _ in sorted(logged)]
+    assert before <= sent[0] and sent == sorted(sent) and sent[-1] <= after
+    assert all(published <= log_time for _, published, log_time in logged)
 
 
 def test_sigkill_to_recorder_then_recover_keeps_everything_flushed(nodes_factory, test_node, tmp_path, ros_domain):

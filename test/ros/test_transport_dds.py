@@ -191,12 +191,17 @@ def test_in_process_pubsub_raw_and_bad_payload(dds_env, ros_domain):
     assert not node.wait_for_subscribers(pub, 1, 0.2)  # nobody there yet
     node.create_subscription(STRING, "t", lambda m: got.append(m.data), DEFAULT)
     node.create_subscription(STRING, "/t", lambda d, ts: raw.append(bytes(d)), DEFAULT, raw=True)
-    assert node.wait_for_subscribers(pub, 2, PATIENCE)
+    timed = []  # a raw callback of three arguments also gets the writer's send time (MCAP's publish time)
+    node.create_subscription(STRING, "/t", lambda d, ts, sent: timed.append((sent, ts)), DEFAULT, raw=True)
+    assert node.wait_for_subscribers(pub, 3, PATIENCE)
+    before = time.time_ns()
     pub.publish(node.new_message(STRING, data="a"))
+    after = time.time_ns()
     cdr = node._registry.serialize(node.new_message(STRING, data="b"), STRING)
     pub.publish_raw(cdr)
-    node.spin_until(lambda: len(got) == 2 and len(raw) == 2, PATIENCE)
+    node.spin_until(lambda: len(got) == 2 and len(raw) == 2 and len(timed) == 2, PATIENCE)
     assert got == ["a", "b"] and raw[1] == cdr
+    assert before <= timed[0][0] <= after <= timed[0][1] and timed[0][0] <= timed[1][0]
     with pytest.raises(transport.TransportError, match="layout"):
         pub.publish_raw(b"\x00\x01\x00\x00\xff\xff\xff\x7f")  # string length beyond the payload
     with pytest.raises(transport.TransportError):

@@ -4,6 +4,7 @@ static type check of the seam.
 """
 from __future__ import annotations
 
+import inspect
 import subprocess
 import sys
 from pathlib import Path
@@ -19,6 +20,7 @@ from ambiegen_ros.ros.qos import DEFAULT, LATCHED, Qos  # noqa: E402
 from ambiegen_ros.ros.transport import rclpy_backend  # noqa: E402
 
 STRING = "std_msgs/msg/String"
+SOURCE_NS = 1_700_000_000_000_000_007  # the fake middleware's source timestamp of every sample
 
 
 # ---------------------------------------------------------------------------------------------
@@ -184,9 +186,13 @@ def _fake_rclpy(monkeypatch):
             if not state["ok"]:
                 raise ExternalShutdownException()
             for node in self.nodes:
-                while node.pending:
+                while node.pending:  # rclpy's rule: a callback of two arguments gets the message info
                     cb, m = node.pending.pop(0)
-                    cb(m)
+                    try:
+                        inspect.signature(cb).bind(m)
+                        cb(m)
+                    except TypeError:
+                        cb(m, {"source_timestamp": SOURCE_NS, "received_timestamp": SOURCE_NS + 1})
 
     def init(*, args=None, context=None, domain_id=None, signal_handler_options=None):
         state["ok"], state["init_args"], state["signal_options"] = True, args, signal_handler_options
@@ -248,15 +254,19 @@ def test_rclpy_adapter_against_a_fake_jazzy_api(monkeypatch):
     pub = node.create_publisher(STRING, "chat", LATCHED)
     node.create_subscription(STRING, "/chat", lambda m: got.append(m.data), DEFAULT)
     node.create_subscription(STRING, "chat", lambda d, t: got.append((d, t > 0)), DEFAULT, raw=True)
-    assert pub.subscription_count() == 2 and pub.topic == "/chat"
+    sent = []
+    node.create_subscription(STRING, "chat", lambda d, t, source: sent.append(source), DEFAULT, raw=True)
+    assert pub.subscription_count() == 3 and pub.topic == "/chat"
     # no QoS event handlers: rclpy's default ones are waitables rebuilt into every wait (issue 58)
     assert [type(e).__name__ for e in state["event_callbacks"]] == [
-        "PublisherEventCallbacks", "SubscriptionEventCallbacks", "SubscriptionEventCallbacks"]
+        "PublisherEventCallbacks", "SubscriptionEventCallbacks", "SubscriptionEventCallbacks",
+        "SubscriptionEventCallbacks"]
     assert not any(e.use_default_callbacks for e in state["event_callbacks"])
     pub.publish(node.new_message(STRING, data="hi"))
     pub.publish_raw(bytearray(b"\x00\x01\x00\x00"))
     node.spin_once(0.0)
     assert got == ["hi", (b"CDR:hi", True), "\x00\x01\x00\x00", (b"\x00\x01\x00\x00", True)]
+    assert sent == [SOURCE_NS, SOURCE_NS]  # a raw callback of three arguments gets the writer's send time
     assert node.now_ns() == 123 and node.topic_names_and_types()[0][0] == "/a"
     (ep,) = node.publishers_info("chat")
     assert (ep.qos, ep.keep_all, ep.type_hash, ep.topic) == (LATCHED, False, "RIHS01_x", "/chat")

@@ -400,7 +400,9 @@ class Node(abc.ABC):
     @abc.abstractmethod
     def create_subscription(self, typename: str, topic: str, callback: Callable[..., None],
                             qos: Qos, raw: bool = False) -> Subscription:
-        """raw=False: ``callback(msg)``; raw=True: ``callback(cdr_bytes, receive_time_ns)``.
+        """raw=False: ``callback(msg)``; raw=True: ``callback(cdr_bytes, receive_time_ns)``, or
+        ``callback(cdr_bytes, receive_time_ns, source_time_ns)`` for a callback of three arguments
+        (the writer's clock when it sent the sample: MCAP's publish time).
 
         Every sample passes ``input_guard()``: oversize or undecodable samples and handler
         exceptions are dropped and counted (``input_stats()``), never raised into ``spin``.

@@ -240,7 +240,7 @@ class DdsSubscription(Subscription):
                 continue
             if len(data) > 4 and data[3] & 3:
                 data = unpad_cdr(data)
-            deliver(data, now)
+            deliver(data, now, info.source_timestamp)
         return len(got)
 
     def destroy(self) -> None:

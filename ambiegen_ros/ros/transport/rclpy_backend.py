@@ -17,7 +17,7 @@ import importlib.util
 import shlex
 import time
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Sequence, cast
 
 from ambiegen_ros.ros.qos import Qos
 
@@ -366,8 +366,13 @@ class RclpyNode(Node):
         cls = self._msg_class(typename)
         deliver = self.input_guard().wrap(self.resolve_topic_name(topic), callback, raw,
                                           lambda data: deserialize_message(data, cls))
-        sub = self._node.create_subscription(cls, topic, lambda data: deliver(data, time.time_ns()),
-                                             to_rclpy_qos(qos), raw=True, event_callbacks=no_event_handlers(publisher=False))
+
+        def on_sample(data: Any, info: dict[str, int]) -> None:  # two arguments: rclpy adds the message info
+            deliver(data, time.time_ns(), info.get("source_timestamp"))
+
+        # Jazzy's rclpy types the callback as one argument and calls one of two with the info
+        sub = self._node.create_subscription(cls, topic, cast(Any, on_sample), to_rclpy_qos(qos), raw=True,
+                                             event_callbacks=no_event_handlers(publisher=False))
         return _RclpySubscription(sub, typename, sub.topic_name, qos, raw)
 
     def create_timer(self, period_s: float, callback: Callable[[], None]) -> Timer:
