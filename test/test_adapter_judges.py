@@ -522,3 +522,23 @@ def test_a_fault_of_the_adapter_logs_its_traceback_and_still_ends_in_an_error_re
     assert "AttributeError in the adapter" in outcome.detail and "a fault of ours" in outcome.detail
     (log,) = logged
     assert "scenario 4" in log and "Traceback (most recent call last)" in log and "raise_it" in log
+
+
+def test_a_run_being_judged_is_still_held_until_its_result_is_out():
+    """Heartbeats count a run the adapter judges after Nav2 answered (reference, timing, hazards: a
+    moment) until its result is out: on the K=1 Nav2 measurement the runner heard "idle" in that
+    moment and sent the scenario again. On a STAND-IN: finish's bookkeeping, the judging stubbed."""
+    held = []
+    stand_in = SimpleNamespace(queue=deque(), job=Job("r", 4, None, None), finishing=None, idle=lambda: None)
+    stand_in.in_flight = lambda: SutAdapter.in_flight(stand_in)
+    stand_in._finish = lambda job, outcome: held.append((job.scenario_id, stand_in.in_flight()))
+    SutAdapter.finish(stand_in, Outcome.rejected("judged"))
+    assert held == [(4, 1)] and stand_in.in_flight() == 0
+
+    def judging_fails(job, outcome):
+        raise RuntimeError("a fault while judging")
+
+    stand_in.job, stand_in._finish = Job("r", 5, None, None), judging_fails
+    with pytest.raises(RuntimeError):
+        SutAdapter.finish(stand_in, Outcome.rejected("judged"))
+    assert stand_in.in_flight() == 0  # never held for ever

@@ -146,8 +146,8 @@ class SutAdapter:
         for name in self.order.streams:  # every status kept: each one moves its stream's watermark
             n.create_subscription("diagnostic_msgs/msg/DiagnosticArray", self.topics[name],
                                   lambda msg, name=name: self.on_status(name, msg), self.sample_qos)
-        self.endpoint = WorkerEndpoint(n, self.problem, self.accept,
-                                       lambda: len(self.queue) + (self.job is not None), default_id)
+        self.finishing: Job | None = None  # a run being judged, its result not out yet: still held here
+        self.endpoint = WorkerEndpoint(n, self.problem, self.accept, self.in_flight, default_id)
         self.worker_id = self.endpoint.worker_id
         self.answered: OrderedDict[tuple[str, int], Any] = OrderedDict()  # the last results, for a scenario sent again
         warm_up_judge(self.problem_name, self.oracle)  # not mid-run: see its docstring
@@ -185,6 +185,11 @@ class SutAdapter:
         return oracle_config(self.problem_name, options, self.settings.get("robot_profile", ""))
 
     # --- worker side ----------------------------------------------------------------------------
+    def in_flight(self) -> int:
+        """Scenarios held here, as heartbeats say: waiting, running, or judged but not yet answered
+        (a driver sends a scenario again when every worker says it holds none)."""
+        return len(self.queue) + (self.job is not None) + (self.finishing is not None)
+
     def publish(self, run_id: str, sid: int, outcome: Outcome) -> None:
         """A scenario's result, out and kept a while: a driver that did not hear it sends the scenario again."""
         self.answered[(run_id, sid)] = outcome
@@ -425,8 +430,15 @@ class SutAdapter:
     def finish(self, outcome: Outcome) -> None:
         """The run's result, published: the oracle's verdict or an error, with the stack's word, the
         reference's certificate, hazards evidence, known failures and the run's own figures."""
-        job = self.job
+        job = self.finishing = self.job
         self.job = None
+        try:
+            self._finish(job, outcome)
+        finally:
+            self.finishing = None
+        self.idle()
+
+    def _finish(self, job: Job, outcome: Outcome) -> None:
         if self._fast is not None:
             self._fast.cancel()
             self._fast = None
@@ -455,7 +467,6 @@ class SutAdapter:
             outcome.metrics["goal_sends"] = job.goal_sends
         self.publish(job.run_id, job.scenario_id, outcome)
         self.node.logger.info(f"scenario {job.scenario_id}: {outcome.failure_kind} ({outcome.detail}) in {wall:.2f} s")
-        self.idle()
 
 
 def hazards_evidence(problem: Any, scenario: Any, outcome: Outcome) -> Outcome:
