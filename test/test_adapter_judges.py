@@ -527,18 +527,28 @@ def test_a_fault_of_the_adapter_logs_its_traceback_and_still_ends_in_an_error_re
 def test_a_run_being_judged_is_still_held_until_its_result_is_out():
     """Heartbeats count a run the adapter judges after Nav2 answered (reference, timing, hazards: a
     moment) until its result is out: on the K=1 Nav2 measurement the runner heard "idle" in that
-    moment and sent the scenario again. On a STAND-IN: finish's bookkeeping, the judging stubbed."""
+    moment and sent the scenario again. ``SutAdapter.finish`` on a STAND-IN adapter."""
     held = []
-    stand_in = SimpleNamespace(queue=deque(), job=Job("r", 4, None, None), finishing=None, idle=lambda: None)
-    stand_in.in_flight = lambda: SutAdapter.in_flight(stand_in)
-    stand_in._finish = lambda job, outcome: held.append((job.scenario_id, stand_in.in_flight()))
-    SutAdapter.finish(stand_in, Outcome.rejected("judged"))
-    assert held == [(4, 1)] and stand_in.in_flight() == 0
 
-    def judging_fails(job, outcome):
+    def stand_in_for(job, with_timing):
+        stand_in = SimpleNamespace(
+            queue=deque(), job=job, finishing=None, _fast=None, topics={}, order=SimpleNamespace(streams={}),
+            reference=False, problem_name="robot", problem=SimpleNamespace(hazards=False), known_failures=[],
+            ours_error_codes=set(), time_scale=1.0, stamp_clock="sim", idle=lambda: None,
+            nav2=SimpleNamespace(result=None, handle=None, recoveries=0, cancel=lambda: None),
+            mode=SimpleNamespace(with_timing=with_timing, certifies_itself=False),
+            node=SimpleNamespace(logger=SimpleNamespace(info=lambda text: None)))
+        stand_in.publish = lambda run_id, sid, out: held.append((sid, SutAdapter.in_flight(stand_in)))
+        return stand_in
+
+    stand_in = stand_in_for(Job("r", 4, None, None, started=0.0), lambda out: out)
+    SutAdapter.finish(stand_in, Outcome.rejected("judged"))
+    assert held == [(4, 1)] and SutAdapter.in_flight(stand_in) == 0  # held while its result went out, then not
+
+    def judging_fails(out):
         raise RuntimeError("a fault while judging")
 
-    stand_in.job, stand_in._finish = Job("r", 5, None, None), judging_fails
+    stand_in = stand_in_for(Job("r", 5, None, None, started=0.0), judging_fails)
     with pytest.raises(RuntimeError):
         SutAdapter.finish(stand_in, Outcome.rejected("judged"))
-    assert stand_in.in_flight() == 0  # never held for ever
+    assert SutAdapter.in_flight(stand_in) == 0  # never held for ever

@@ -429,44 +429,42 @@ class SutAdapter:
     # --- the end --------------------------------------------------------------------------------
     def finish(self, outcome: Outcome) -> None:
         """The run's result, published: the oracle's verdict or an error, with the stack's word, the
-        reference's certificate, hazards evidence, known failures and the run's own figures."""
+        reference's certificate, hazards evidence, known failures and the run's own figures. The run
+        stays held (``finishing``, in the heartbeats) until its result is out."""
         job = self.finishing = self.job
         self.job = None
         try:
-            self._finish(job, outcome)
+            if self._fast is not None:
+                self._fast.cancel()
+                self._fast = None
+            outcome = nav2_rules.with_stack_word(outcome, self.nav2, job)  # Nav2's own word beside our oracle's
+            if self.topics.get("plan"):
+                outcome = self.mode.with_plans(outcome)
+            outcome = with_give_up(outcome, self.order.streams.get("stall"), self.topics.get("stall"))
+            outcome = nav2_rules.ours_or_the_stacks(outcome, self.ours_error_codes)
+            outcome = self.mode.with_timing(outcome)  # did the stack get its computer? a starved run is no verdict
+            if self.reference and outcome.failed and not self.mode.certifies_itself:  # does the reference pass it?
+                budget = nav2_rules.budget_spent(outcome.failure_kind, job.judge.elapsed, self.goal_time_budget)
+                outcome = reference.certify(outcome, reference.after(self.problem, job.scenario, self.oracle, outcome,
+                                                                     budget=budget) or job.before)
+            hazards = self.problem_name == "robot" and getattr(self.problem, "hazards", False)
+            if hazards:
+                outcome = hazards_evidence(self.problem, job.scenario, outcome)
+            if self.known_failures and outcome.failed:
+                outcome = known_failures.mark(outcome, self.known_failures)
+            wall = time.monotonic() - job.started
+            outcome.elapsed_sec = wall
+            outcome.metrics = {**outcome.metrics, "valid": job.valid, "reason": job.reason, "wall_s": wall,
+                               "time_scale": self.time_scale, "stamp_clock": self.stamp_clock}
+            if hazards:
+                outcome.metrics["contacts_not_at_fault"] = job.contacts_not_at_fault
+            if job.goal_sends > 1:
+                outcome.metrics["goal_sends"] = job.goal_sends
+            self.publish(job.run_id, job.scenario_id, outcome)
+            self.node.logger.info(f"scenario {job.scenario_id}: {outcome.failure_kind} ({outcome.detail}) in {wall:.2f} s")
         finally:
             self.finishing = None
         self.idle()
-
-    def _finish(self, job: Job, outcome: Outcome) -> None:
-        if self._fast is not None:
-            self._fast.cancel()
-            self._fast = None
-        outcome = nav2_rules.with_stack_word(outcome, self.nav2, job)  # Nav2's own word beside our oracle's
-        if self.topics.get("plan"):
-            outcome = self.mode.with_plans(outcome)
-        outcome = with_give_up(outcome, self.order.streams.get("stall"), self.topics.get("stall"))
-        outcome = nav2_rules.ours_or_the_stacks(outcome, self.ours_error_codes)
-        outcome = self.mode.with_timing(outcome)  # did the stack get its computer? a starved run is no verdict
-        if self.reference and outcome.failed and not self.mode.certifies_itself:  # does the reference pass it?
-            budget = nav2_rules.budget_spent(outcome.failure_kind, job.judge.elapsed, self.goal_time_budget)
-            outcome = reference.certify(outcome, reference.after(self.problem, job.scenario, self.oracle, outcome,
-                                                                 budget=budget) or job.before)
-        hazards = self.problem_name == "robot" and getattr(self.problem, "hazards", False)
-        if hazards:
-            outcome = hazards_evidence(self.problem, job.scenario, outcome)
-        if self.known_failures and outcome.failed:
-            outcome = known_failures.mark(outcome, self.known_failures)
-        wall = time.monotonic() - job.started
-        outcome.elapsed_sec = wall
-        outcome.metrics = {**outcome.metrics, "valid": job.valid, "reason": job.reason, "wall_s": wall,
-                           "time_scale": self.time_scale, "stamp_clock": self.stamp_clock}
-        if hazards:
-            outcome.metrics["contacts_not_at_fault"] = job.contacts_not_at_fault
-        if job.goal_sends > 1:
-            outcome.metrics["goal_sends"] = job.goal_sends
-        self.publish(job.run_id, job.scenario_id, outcome)
-        self.node.logger.info(f"scenario {job.scenario_id}: {outcome.failure_kind} ({outcome.detail}) in {wall:.2f} s")
 
 
 def hazards_evidence(problem: Any, scenario: Any, outcome: Outcome) -> Outcome:
