@@ -227,7 +227,8 @@ def test_a_search_on_the_supervised_stack_goes_on_after_a_crash(tmp_path, ros_do
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     rows = TrialLog(results).rows()
     generations = {r["scenario_name"].split("-")[0] for r in rows}
-    assert generations == {"g1", "g2", "g3"}, [r["scenario_name"] for r in rows]  # 12 evaluations: 3 batches of 4
+    assert generations == {"g1", "g2", "g3"}, (  # 12 evaluations: 3 batches of 4
+        [(r["scenario_name"], r["verdict"], str(r.get("detail"))[:100]) for r in rows], run.stdout[-3000:])
     assert "generation 1 told" in run.stdout and "generation 2 told" in run.stdout
     crash = next(r for r in rows if r["failure_kind"] == "sut_crashed")
     assert "nd_driver killed by SIGKILL" in crash["detail"] and crash["scenario_name"] == rows[1]["scenario_name"]
