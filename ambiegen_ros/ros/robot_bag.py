@@ -140,7 +140,6 @@ def read_index(path: str | Path, run_id: str | None = None) -> BagIndex:
     scenario_msgs: dict[str, dict[int, Any]] = {}
     results: dict[tuple[str, int], tuple[int, Any, int]] = {}  # (run id, scenario id) -> (log time, message, publish time)
     setups: list[tuple[int, str, int]] = []  # log time, topic, publish time
-    sent: list[int] = []  # log times of the scenario messages (of every run)
     other_problems: set[str] = set()
     wanted = {ROBOT_SCENARIOS, topics.RESULTS, *SETUP_TOPICS} | {topics.scenarios(p) for p in topics.SCENARIO_TYPES}
     try:
@@ -151,7 +150,6 @@ def read_index(path: str | Path, run_id: str | None = None) -> BagIndex:
                 if sid not in scenario_msgs.setdefault(msg.meta.run_id, {}):
                     scenario_msgs[msg.meta.run_id][sid] = msg
                     scenario_ns.setdefault(msg.meta.run_id, {})[sid] = log_ns
-                    sent.append(log_ns)
             elif topic == topics.RESULTS:
                 results.setdefault((msg.run_id, int(msg.scenario_id)), (log_ns, msg, pub_ns))
             elif topic in SETUP_TOPICS:
@@ -165,7 +163,7 @@ def read_index(path: str | Path, run_id: str | None = None) -> BagIndex:
         what = f"a {'/'.join(sorted(other_problems))} run" if other_problems else "no scenario messages"
         raise BadInput(f"{path}: not a robot bag ({what}; nothing on {ROBOT_SCENARIOS})")
     runs = {}
-    sent.sort()
+    sent = sorted(t for ids in scenario_ns.values() for t in ids.values())  # every run's scenario messages
     for run, msgs in scenario_msgs.items():
         entries = {}
         for sid in sorted(msgs):
