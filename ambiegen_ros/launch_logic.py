@@ -6,6 +6,7 @@ without ROS and both ways of running a campaign name and report it alike.
 """
 from __future__ import annotations
 
+import json
 import os
 import re
 import secrets
@@ -323,11 +324,24 @@ def planner_under_test(params: dict) -> tuple[str, str, str]:
     rules = {name: section[name] for name in PLANNER_RULE_KEYS[key] if name in section}
     if key == "smac_hybrid" and section.get("motion_model_for_search"):
         rules["motion_model"] = section["motion_model_for_search"]
+    if key == "smac_lattice" and section.get("lattice_filepath"):
+        rules.update(lattice_metadata(f"planner_server.{planner_id}.lattice_filepath", section["lattice_filepath"]))
     costmap = (((params.get("global_costmap") or {}).get("global_costmap") or {}).get("ros__parameters")) or {}
     if "robot_radius" in costmap:
         rules["robot_radius"] = costmap["robot_radius"]
     text = ",".join(f"{k}={str(v).lower() if isinstance(v, bool) else v}" for k, v in rules.items())
     return planner_id, key, text
+
+
+def lattice_metadata(where: str, path: str) -> dict:
+    """The rules a Smac Lattice primitives file sets (``turning_radius``, ``motion_model`` of its
+    ``lattice_metadata``); ``ValueError`` naming ``where`` (the param) when the file cannot tell."""
+    try:
+        meta = json.loads(Path(path).read_text())["lattice_metadata"]
+        return {"minimum_turning_radius": float(meta["turning_radius"]), "motion_model": str(meta["motion_model"])}
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ValueError(f"{where}: {path!r} gives no lattice_metadata turning_radius and motion_model "
+                         f"({type(exc).__name__}: {exc})") from None
 
 
 def planner_stack(params: dict, params_file: Path | None, tag: str, upsample: int, start_timeout: float,

@@ -62,10 +62,15 @@ def finding_key(row: dict) -> str:
                                      m.get("plan_error_code", ""), shape_of(row)))
 
 
+def clearance_of(row: dict) -> float | None:
+    """The least clearance of a path that held (m), None when the row has none."""
+    value = row.get("metrics", {}).get("plan_clearance_m")
+    return None if value in (None, "None") else float(value)
+
+
 def summarise(rows: list[dict], minutes: float) -> dict:
     findings = [r for r in rows if r["failed"]]
-    clearances = [float(r["metrics"]["plan_clearance_m"]) for r in rows
-                  if r["failure_kind"] == "none" and r.get("metrics", {}).get("plan_clearance_m") not in (None, "None")]
+    clearances = [c for r in rows if r["failure_kind"] == "none" and (c := clearance_of(r)) is not None]
     starts = sorted(r["wall_start_ns"] for r in rows)
     span = (starts[-1] - starts[0]) / 1e9 if len(starts) > 1 else math.nan
     keys = Counter(finding_key(r) for r in findings)
@@ -93,10 +98,12 @@ def run(args: argparse.Namespace) -> dict:
             raise SystemExit(f"stack-search failed ({proc.returncode}):\n{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}")
         rows = [json.loads(line) for line in (d / "rows.jsonl").read_text().splitlines() if line.strip()]
         found = [r for r in rows if r["failed"]]
-        if found and args.keep:
+        held = [r for r in rows if r["failure_kind"] == "none" and clearance_of(r) is not None]
+        closest = [min(held, key=clearance_of)] if held else []
+        if (found or closest) and args.keep:  # the findings, and the closest call to draw
             keep = Path(args.keep) / f"{args.plugin}_{args.algorithm}_{args.seed}.jsonl"
             keep.parent.mkdir(parents=True, exist_ok=True)
-            keep.write_text("".join(json.dumps(r) + "\n" for r in found))
+            keep.write_text("".join(json.dumps(r) + "\n" for r in found + closest))
     return {"plugin": args.plugin, "algorithm": args.algorithm, "seed": args.seed, "minutes": args.minutes,
             "when": datetime.now(timezone.utc).isoformat(timespec="seconds"), **summarise(rows, args.minutes)}
 
@@ -139,7 +146,7 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--minutes", type=float, default=3.0, help="wall minutes of the planner stack per run")
     ap.add_argument("--domain-id", type=int, default=6, help="a ROS domain no test or other run uses")
-    ap.add_argument("--keep", default="", help="a folder for the rows of the run's findings")
+    ap.add_argument("--keep", default="", help="a folder for the rows of the run's findings and its closest call")
     ap.add_argument("--report", action="store_true")
     args = ap.parse_args()
     if args.report:

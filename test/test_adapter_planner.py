@@ -258,6 +258,37 @@ def test_the_planner_stack_runs_the_params_plugin_under_its_rules_and_refuses_on
     assert "/global_costmap/costmap" in made[0].parameters["extra_topics"]
 
 
+def test_a_lattice_is_judged_by_its_primitives_file_and_a_file_that_cannot_tell_is_one_line(tmp_path):
+    """A 1 m Ackermann set raises the turning limit; a diff set (rotations in place) turns the kinematic
+    oracles off, so an in-place turn is no tight_turn; an unreadable file names the param."""
+    import json
+
+    from ambiegen_ros.launch_logic import planner_under_test
+    from ambiegen_ros.sims.plans.oracles import check_turning
+
+    def lattice(path):
+        return {"planner_server": {"ros__parameters": {"planner_plugins": ["La"], "La": {
+            "plugin": "nav2_smac_planner/SmacPlannerLattice", "lattice_filepath": str(path)}}}}
+
+    judged = {}
+    for model in ("ackermann", "diff"):
+        f = tmp_path / model / "output.json"
+        f.parent.mkdir()
+        f.write_text(json.dumps({"lattice_metadata": {"motion_model": model, "turning_radius": 1.0,
+                                                      "grid_resolution": 0.05}, "primitives": []}))
+        _, key, text = planner_under_test(lattice(f))
+        judged[model] = planner_rules(key, parse_rules(text))
+    assert judged["ackermann"].min_turning_radius == 1.0 and not judged["ackermann"].reversing
+    assert judged["diff"].min_turning_radius is None
+    # straight, a turn in place through 90 degrees, straight: a corner of radius ~0.07 m
+    corner = np.array([[0.0, 0, 0], [0.1, 0, 0], [0.2, 0, 0], [0.2, 0, 1.57], [0.2, 0.1, 1.57], [0.2, 0.2, 1.57]])
+    assert check_turning(corner, judged["ackermann"]) is not None
+    assert check_turning(corner, judged["diff"]) is None
+    assert planner_rules("smac_lattice", {}).min_turning_radius == 0.5  # no file: Jazzy's default set
+    with pytest.raises(ValueError, match="planner_server.La.lattice_filepath"):
+        planner_under_test(lattice(tmp_path / "missing.json"))
+
+
 def test_a_search_in_the_loop_climbs_towards_findings_and_paths_close_to_walls():
     """``loop_f1`` of a planner's answer (no time, no route driven): a finding above any path that
     held, a path closer to a lethal cell above a farther one, no path or an unusable answer 0."""
@@ -319,6 +350,23 @@ def test_a_finding_is_written_as_nav2s_maintainers_ask_for_one(tmp_path):
     assert f"START, GOAL = {tuple(round(v, 4) for v in start)}" in script and "getPath" in script
     assert (tmp_path / "case_params.yaml").read_text() == params.read_text()
     assert _json.loads((tmp_path / "case_suite.json").read_text())["suite"][0]["scenario"] == row["scenario"]
+    assert "MIN_RADIUS = None" in script  # Theta*: no turning limit to report
+    hybrid = write_finding(rows, "case", problem, REPO / "config" / "nav2" / "planners" / "smac_hybrid.yaml", 5,
+                           tmp_path / "hybrid", "known", "#4271", "why", min_turning_radius=0.4)
+    script = (hybrid.parent / "case_reproduce.py").read_text()
+    assert "MIN_RADIUS = 0.4" in script and "minimum turning radius, 0.4 m" in hybrid.read_text()
+    # the script's own tightest-turn check, run here without ROS: a 0.3 m arc between two straights
+    import ast
+    import math
+    tree = ast.parse(script)
+    helper = ast.Module([n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name == "tightest_turn"], [])
+    space = {"math": math, "RESOLUTION": 0.05}
+    exec(compile(helper, "case_reproduce.py", "exec"), space)
+    arc = [(0.3 * math.sin(t), 0.3 - 0.3 * math.cos(t)) for t in np.linspace(0, math.pi / 2, 12)]
+    line = [(-0.05 * k, 0.0) for k in range(6, 0, -1)] + arc + [(0.3, 0.3 + 0.05 * k) for k in range(1, 6)]
+    radius, i = space["tightest_turn"](line)
+    assert radius == pytest.approx(0.3, rel=0.02) and 6 <= i < 18
+    assert space["tightest_turn"]([(0.05 * k, 0.0) for k in range(10)]) == (math.inf, -1)
     with pytest.raises(ValueError, match="label"):
         write_finding(rows, "case", problem, params, 5, tmp_path, "maybe", "", "")
     with pytest.raises(ValueError, match="no row"):

@@ -349,6 +349,10 @@ def cmd_search(args) -> int:
 def cmd_planner_report(args) -> int:
     import yaml
 
+    from sim_nodes.adapter.robot_planner import parse_rules, planner_rules
+
+    from ..core.config import ConfigError
+    from ..launch_logic import planner_under_test
     from ..run_config import make_run
     from ..trials.planner_findings import write_finding
     from ..trials.rows import TrialLog
@@ -363,12 +367,17 @@ def cmd_planner_report(args) -> int:
     if not args.config:
         raise BadInput("--config: the run config the rows ran with (e.g. config/robot_planner.yaml)")
     problem = make_run("robot", args.config, seed=0)[0]
+    try:  # the planner's rules: a kinematic planner's script also reports the tightest turn
+        _, key, overrides = planner_under_test(loaded)
+        min_radius = planner_rules(key, parse_rules(overrides)).min_turning_radius
+    except (ValueError, ConfigError) as exc:
+        raise BadInput(f"--params {params}: {exc}") from None
     # without a costmap resolution in the params, the runs' own default (TrialSettings), not a copy of it
     upsample = planner_upsample(loaded, TrialSettings, problem.config.resolution)
     try:
         page = write_finding(TrialLog(Path(args.results)).rows(), args.scenario, problem, params, upsample,
                              Path(args.out), args.label, args.references or "no reference yet", args.explain,
-                             Path(args.picture) if args.picture else None)
+                             Path(args.picture) if args.picture else None, min_turning_radius=min_radius)
     except ValueError as exc:
         raise BadInput(str(exc)) from None
     print(f"written: {page}")

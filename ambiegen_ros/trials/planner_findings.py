@@ -84,6 +84,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 HERE = Path(__file__).resolve().parent
 START, GOAL = {start}, {goal}
 RESOLUTION, INSCRIBED = {resolution}, {inscribed}
+MIN_RADIUS = {min_radius}  # the planner's minimum turning radius (m); None: a 2D planner, no turning limit
 
 
 def pose(nav, x, y, yaw):
@@ -92,6 +93,23 @@ def pose(nav, x, y, yaw):
     p.pose.position.x, p.pose.position.y = x, y
     p.pose.orientation.z, p.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
     return p
+
+
+def tightest_turn(points):
+    """(radius, index) of the tightest turn: the circle through three successive points at least half
+    a cell apart (the middle one's index), or (inf, -1) when the path has none."""
+    kept = [0]
+    for i in range(1, len(points)):
+        if math.dist(points[i], points[kept[-1]]) >= RESOLUTION / 2:
+            kept.append(i)
+    best = (math.inf, -1)
+    for a, b, c in zip(kept, kept[1:], kept[2:]):
+        (ax, ay), (bx, by), (cx, cy) = points[a], points[b], points[c]
+        cross = abs((bx - ax) * (cy - ay) - (by - ay) * (cx - ax))
+        if cross > 0:
+            r = math.dist(points[a], points[b]) * math.dist(points[b], points[c]) * math.dist(points[c], points[a])
+            best = min(best, (r / (2 * cross), b))
+    return best
 
 
 def read_map():
@@ -130,6 +148,10 @@ def main():
         if 0 <= mx < size_x and 0 <= my < size_y and costs[my * size_x + mx] >= 253:
             bad.append((i, round(p.pose.position.x, 3), round(p.pose.position.y, 3), costs[my * size_x + mx]))
     print(f"{{len(path.poses)}} poses; {{len(bad)}} in cells of cost >= 253 (inscribed or lethal): {{bad[:10]}}")
+    if MIN_RADIUS is not None:
+        radius, i = tightest_turn([(p.pose.position.x, p.pose.position.y) for p in path.poses])
+        print(f"tightest turn: radius {{radius:.3f}} m at pose {{i}}, against a minimum turning radius of "
+              f"{{MIN_RADIUS}} m{{' (tighter)' if radius < MIN_RADIUS else ''}}")
     nav.destroy_node()
     rclpy.shutdown()
 
@@ -141,8 +163,9 @@ if __name__ == "__main__":
 
 def write_finding(rows: Sequence[dict], name: str, problem: Any, params_file: Path, upsample: int, out: Path,
                   label: str, references: str, explanation: str, picture: Path | None = None,
-                  jazzy_params: Path | None = None) -> Path:
-    """Write the finding's files (module docstring); the path of its page."""
+                  jazzy_params: Path | None = None, min_turning_radius: float | None = None) -> Path:
+    """Write the finding's files (module docstring); the path of its page. ``min_turning_radius``:
+    the planner's (Hybrid-A*, Lattice), so that the script also reports the path's tightest turn."""
     if label not in LABELS:
         raise ValueError(f"label: {label!r} (allowed: {', '.join(LABELS)})")
     runs = [r for r in rows if r.get("scenario_name") == name]
@@ -162,7 +185,7 @@ def write_finding(rows: Sequence[dict], name: str, problem: Any, params_file: Pa
     script.write_text(SCRIPT.format(title=name, params=params.name, script=script.name, map_yaml=f"{name}.yaml",
                                     pgm=f"{name}.pgm", start=tuple(round(v, 4) for v in start),
                                     goal=tuple(round(v, 4) for v in goal), resolution=res,
-                                    inscribed=round(inscribed, 4)))
+                                    inscribed=round(inscribed, 4), min_radius=min_turning_radius))
     kinds = Counter(r["failure_kind"] for r in runs)
     failed = sum(bool(r["failed"]) for r in runs)
     versions = first.get("versions") or {}
@@ -183,7 +206,9 @@ def write_finding(rows: Sequence[dict], name: str, problem: Any, params_file: Pa
         "at 20 Hz instead of 1 Hz) and one planner plugin with its Jazzy defaults.",
         "", "## On a stock Jazzy", "",
         f"[`{name}_reproduce.py`]({name}_reproduce.py) says how to start `planner_server` alone and asks "
-        "for the path through `nav2_simple_commander`, then checks its poses on the costmap Nav2 made.",
+        "for the path through `nav2_simple_commander`, then checks its poses on the costmap Nav2 made" +
+        ("." if min_turning_radius is None else
+         f" and reports its tightest turn against the minimum turning radius, {min_turning_radius:g} m."),
         "", "## Rerun with AmbieGen", "",
         f"[`{name}_suite.json`]({name}_suite.json) holds the scenario as AmbieGen runs it:", "",
         "```bash", f"ambiegen rerun {suite.name} --stack planner --params {params_file.stem}={params.name} "

@@ -37,7 +37,7 @@ Sources (navigation2, branch ``jazzy``):
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Optional
 
 import numpy as np
@@ -106,10 +106,18 @@ def smac_hybrid(motion_model: str = "DUBIN", minimum_turning_radius: float = 0.4
 
 def smac_lattice(minimum_turning_radius: float = 0.5, allow_reverse_expansion: bool = False,
                  tolerance: float = 0.25, allow_unknown: bool = True, footprint: Optional[np.ndarray] = None,
-                 robot_radius: float = JAZZY.robot_radius, max_planning_time: float = 5.0) -> PlannerRules:
-    """``nav2_smac_planner::SmacPlannerLattice``; the radius is the primitives file's ``turning_radius``."""
-    return _kinematic("smac_lattice", minimum_turning_radius, allow_reverse_expansion, tolerance, allow_unknown,
-                      footprint, robot_radius, max_planning_time)
+                 robot_radius: float = JAZZY.robot_radius, max_planning_time: float = 5.0,
+                 motion_model: str = "ackermann") -> PlannerRules:
+    """``nav2_smac_planner::SmacPlannerLattice``; the radius and motion model are the primitives file's
+    ``lattice_metadata`` (``turning_radius``, ``motion_model``). Only an ``ackermann`` set promises the
+    radius: ``diff`` sets rotate in place and ``omni`` sets move sideways, so for them the kinematic
+    oracles are off and only the collision and endpoint oracles judge."""
+    model = str(motion_model).lower()
+    if model not in ("ackermann", "diff", "omni"):
+        raise ValueError(f"motion_model {motion_model!r}: a lattice file's is ackermann, diff or omni")
+    rules = _kinematic("smac_lattice", minimum_turning_radius, allow_reverse_expansion, tolerance, allow_unknown,
+                       footprint, robot_radius, max_planning_time)
+    return rules if model == "ackermann" else replace(rules, min_turning_radius=None)
 
 
 def _kinematic(name: str, radius: float, reversing: bool, tolerance: float, allow_unknown: bool,
