@@ -58,10 +58,17 @@ def finished(judge, job, outcome: Outcome) -> Outcome:
 
 def test_the_watch_subscribes_to_rosout_and_the_controllers_output_and_can_be_turned_off(robot):
     judge, node, _ = watched(robot)
-    assert {"/rosout", "/cmd_vel_nav"} <= set(node.subs)
-    off, node_off, _ = make_judge(Nav2Robot, robot[0], timing_rosout_topic="", timing_cmd_vel_topic="")
+    assert {"/rosout", "/cmd_vel_nav", "/scan", "/clock"} <= set(node.subs)
+    for _ in range(3):
+        node.subs["/scan"](REG.new("sensor_msgs/msg/LaserScan"))
+    node.subs["/clock"](REG.new("rosgraph_msgs/msg/Clock"))
+    figures, _ = judge.timing.verdict()
+    assert figures["timing.scan_msgs"] == 3 and figures["timing.clock_msgs"] == 1
+    assert figures["timing.scan_max_gap_s"] >= 0.0 and "timing.clock_max_gap_s" not in figures
+    off, node_off, _ = make_judge(Nav2Robot, robot[0], timing_rosout_topic="", timing_cmd_vel_topic="",
+                                  timing_scan_topic="", timing_clock_topic="")
     TimingWatch(node_off, off.settings)
-    assert not {"/rosout", "/cmd_vel_nav"} & set(node_off.subs)
+    assert not {"/rosout", "/cmd_vel_nav", "/scan", "/clock"} & set(node_off.subs)
 
 
 def test_a_starved_nav2_abort_is_an_error_record_of_the_kind_starved(robot):

@@ -18,7 +18,12 @@ runs more cycles per simulated second, and counting by the sim clock would hide 
   acknowledge goal request for <action>", the lifecycle manager's "Have not received a heartbeat
   from <node>." / "CRITICAL FAILURE: SERVER <node> IS DOWN after not receiving a heartbeat" (one
   lapse, however many of its lines), and the costmaps' stale-data lines (counted, no rule);
-* ``ack(seconds)``: how long Nav2 took to accept or refuse our ``navigate_to_pose`` goal.
+* ``ack(seconds)``: how long Nav2 took to accept or refuse our ``navigate_to_pose`` goal;
+* ``arrival(stream, t)``: one message of a stream the stack lives on, ``scan`` (the laser the
+  costmaps read) and ``clock`` (the world's /clock). Their longest silence in wall time is the age
+  the newest scan reached before the next one came, and the world's longest stall: figures on the
+  record (``timing.<stream>_max_gap_s``), under no rule yet (docs/results/nav2/load.md: what they
+  show on a loaded machine decides whether one is needed).
 
 The loop rate is read in windows of ``window_s`` (2 s: 40 cycles at 20 Hz, enough that one slow
 cycle does not decide, short enough that a starved stretch the mean hides still shows), slid over
@@ -68,6 +73,10 @@ class TimingRecord:
     lapses: list[tuple[float, str]] = field(default_factory=list)
     stale: int = 0
     acks: list[float] = field(default_factory=list)
+    arrivals: dict[str, list[float]] = field(default_factory=dict)
+
+    def arrival(self, stream: str, t: float) -> None:
+        self.arrivals.setdefault(stream, []).append(float(t))
 
     def loop(self, t: float) -> None:
         self.loops.append(float(t))
@@ -156,6 +165,10 @@ def summary(record: TimingRecord, th: Thresholds = Thresholds()) -> dict[str, fl
         out["timing.worst_window_hz"] = round(worst, 3)
     if record.acks:
         out["timing.ack_s"] = round(max(record.acks), 4)
+    for stream, times in sorted(record.arrivals.items()):
+        out[f"timing.{stream}_msgs"] = len(times)
+        if len(times) > 1:
+            out[f"timing.{stream}_max_gap_s"] = round(max(b - a for a, b in zip(times, times[1:])), 4)
     return out
 
 

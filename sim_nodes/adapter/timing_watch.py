@@ -1,9 +1,9 @@
-"""Watch a Nav2 run's timing from outside: /rosout and /cmd_vel_nav into a ``TimingRecord``.
+"""Watch a Nav2 run's timing from outside: /rosout, /cmd_vel_nav, /scan and /clock into a ``TimingRecord``.
 
 The record and its rule are ``ambiegen_ros.sims.timing`` (pure); this only feeds them, on the
 adapter's node (either backend): every /rosout line (``rcl_interfaces/msg/Log``), every message on
 the controller's own output (``/cmd_vel_nav``, remapped so by nav2_bringup's navigation_launch.py),
-and the acknowledgement time of our goal, each at its arrival on the monotonic clock. A run's
+the arrivals of the laser scans and the world's clock, and the acknowledgement time of our goal, each at its arrival on the monotonic clock. A run's
 record starts with its goal (``begin``) and is read when the run ends (``verdict``): a starved run
 becomes an error record of its own kind (``nav2_rules.starved_not_failed``).
 """
@@ -22,6 +22,7 @@ from .params import Param
 ROSOUT_QOS = Qos(reliable=True, transient_local=False, depth=1000)
 # the controller's publisher is reliable (the system default); best effort matches any writer
 CMD_VEL_QOS = Qos(reliable=False, transient_local=False, depth=50)
+STREAMS = {"scan": "sensor_msgs/msg/LaserScan", "clock": "rosgraph_msgs/msg/Clock"}  # timing.<name>_max_gap_s
 
 TIMING_PARAMS = (
     Param("timing_rosout_topic", str, "/rosout", "goal_mode action: the stack's log lines (rcl_interfaces/msg/Log) "
@@ -32,6 +33,10 @@ TIMING_PARAMS = (
     Param("timing_cmd_vel_type", str, "geometry_msgs/msg/Twist",
           "goal_mode action: its type (Twist; TwistStamped when Nav2 runs with enable_stamped_cmd_vel)",
           allowed=("geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped")),
+    Param("timing_scan_topic", str, "/scan", "goal_mode action: the laser the costmaps read (LaserScan); its "
+                                             "longest silence in a run, timing.scan_max_gap_s ('' = off)"),
+    Param("timing_clock_topic", str, "/clock", "goal_mode action: the world's clock; its longest stall in a run, "
+                                               "timing.clock_max_gap_s ('' = off)"),
     Param("controller_frequency", float, 20.0, "goal_mode action: Nav2's controller_frequency [Hz] (a missed-rate "
                                                "line naming another wins)", minimum=0, above=True),
     Param("starved_window_s", float, timing.Thresholds.window_s, "goal_mode action: wall seconds per window of the "
@@ -61,6 +66,10 @@ class TimingWatch:
         if settings.timing_cmd_vel_topic:
             node.create_subscription(settings.timing_cmd_vel_type, settings.timing_cmd_vel_topic, self.on_cmd_vel,
                                      CMD_VEL_QOS)
+        for stream, msg_type in STREAMS.items():
+            topic = getattr(settings, f"timing_{stream}_topic")
+            if topic:
+                node.create_subscription(msg_type, topic, lambda _msg, name=stream: self.on_arrival(name), CMD_VEL_QOS)
 
     def begin(self) -> None:
         """A new run: a record of its own."""
@@ -73,6 +82,10 @@ class TimingWatch:
     def on_cmd_vel(self, _msg: Any) -> None:
         if self.record is not None:
             self.record.loop(time.monotonic())
+
+    def on_arrival(self, stream: str) -> None:
+        if self.record is not None:
+            self.record.arrival(stream, time.monotonic())
 
     def goal_sent(self) -> None:
         self.sent = time.monotonic()

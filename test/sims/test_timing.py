@@ -91,3 +91,19 @@ def test_other_lines_are_ignored_and_stale_data_only_counted():
     r = record(ticks(0.0, 10.0, 20.0), lines=[(1.0, "local_costmap", "Transform data too old when converting"),
                                               (2.0, "planner_server", "Reached the goal!")])
     assert starved(r) is None and summary(r)["timing.stale_data"] == 1
+
+
+def test_the_longest_silence_of_the_scans_and_the_clock_is_on_the_record_under_no_rule():
+    r = record(ticks(0.0, 4.0, 20.0))
+    for t in ticks(0.0, 1.0, 10.0) + ticks(1.8, 1.0, 10.0):  # a 10 Hz laser silent from 0.9 s to 1.8 s
+        r.arrival("scan", t)
+    for t in ticks(0.0, 4.0, 100.0):
+        r.arrival("clock", t)
+    out = summary(r)
+    assert out["timing.scan_msgs"] == 20 and out["timing.scan_max_gap_s"] == pytest.approx(0.9)
+    assert out["timing.clock_max_gap_s"] == pytest.approx(0.01)
+    assert starved(r) is None, "a figure, not yet a rule"
+    lone = record(ticks(0.0, 4.0, 20.0))
+    lone.arrival("scan", 1.0)
+    assert summary(lone)["timing.scan_msgs"] == 1 and "timing.scan_max_gap_s" not in summary(lone)
+    assert not any(k.startswith("timing.clock") for k in summary(lone))
