@@ -71,6 +71,8 @@ In four terminals (a sourced Jazzy in each):
   python3 {script}
 This script publishes the map ({map_yaml}, latched on /map, as map_server would), asks
 ComputePathToPose through nav2_simple_commander and checks the answer on the costmap Nav2 made.
+If planner_server crashes, its own terminal says so, and this script waits for an answer that will
+not come: stop it with Ctrl-C.
 """
 import math
 from pathlib import Path
@@ -151,7 +153,7 @@ def main():
     if MIN_RADIUS is not None:
         radius, i = tightest_turn([(p.pose.position.x, p.pose.position.y) for p in path.poses])
         print(f"tightest turn: radius {{radius:.3f}} m at pose {{i}}, against a minimum turning radius of "
-              f"{{MIN_RADIUS}} m{{' (tighter)' if radius < MIN_RADIUS else ''}}")
+              f"{{MIN_RADIUS}} m{{' (tighter by over 2 %)' if radius < 0.98 * MIN_RADIUS else ''}}")
     nav.destroy_node()
     rclpy.shutdown()
 

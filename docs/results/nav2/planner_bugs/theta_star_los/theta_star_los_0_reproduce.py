@@ -8,6 +8,8 @@ In four terminals (a sourced Jazzy in each):
   python3 theta_star_los_0_reproduce.py
 This script publishes the map (theta_star_los_0.yaml, latched on /map, as map_server would), asks
 ComputePathToPose through nav2_simple_commander and checks the answer on the costmap Nav2 made.
+If planner_server crashes, its own terminal says so, and this script waits for an answer that will
+not come: stop it with Ctrl-C.
 """
 import math
 from pathlib import Path
