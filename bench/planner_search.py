@@ -13,7 +13,7 @@ each certified by our own code on the costmap read back), **distinct findings** 
 proves right), errors, and the closest call (the least clearance of a path that held, m). One JSON
 row per run is appended to ``bench/results/planner_search.jsonl``, never rewritten.
 
-``--report`` prints, per plugin, each algorithm's runs and, at 3 runs a side or more, one-sided
+``--report`` prints, per plugin and run length, each algorithm's runs and, at 3 runs a side or more, one-sided
 exact Mann-Whitney tests (``core.stats.greater_exact``, exact with ties) of the search against
 random on distinct findings per hour and on the closest call; below 10 runs a side it is a hint.
 Needs a sourced ROS 2 Jazzy with Nav2's planner_server (a private build; nothing here builds it).
@@ -112,9 +112,11 @@ def report() -> None:
     from ambiegen_ros.core.stats import greater_exact
 
     rows = [json.loads(line) for line in OUT.read_text().splitlines() if line.strip()] if OUT.exists() else []
-    for plugin in sorted({r["plugin"] for r in rows}):
-        side = {a: [r for r in rows if r["plugin"] == plugin and r["algorithm"] == a] for a in ("ga", "nsga2", "random")}
-        print(f"## {plugin}")
+    for plugin, minutes in sorted({(r["plugin"], r["minutes"]) for r in rows}):
+        # runs of one length only: a long survival run is no sample of what two minutes find
+        side = {a: [r for r in rows if (r["plugin"], r["minutes"], r["algorithm"]) == (plugin, minutes, a)]
+                for a in ("ga", "nsga2", "random")}
+        print(f"## {plugin}, runs of {minutes:g} min")
         for algorithm, runs in side.items():
             if runs:
                 print(f"- {algorithm}: {len(runs)} runs, {sum(r['scenarios'] for r in runs)} scenarios, "
