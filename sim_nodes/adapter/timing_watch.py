@@ -3,9 +3,10 @@
 The record and its rule are ``ambiegen_ros.sims.timing`` (pure); this only feeds them, on the
 adapter's node (either backend): every /rosout line (``rcl_interfaces/msg/Log``), every message on
 the controller's own output (``/cmd_vel_nav``, remapped so by nav2_bringup's navigation_launch.py),
-the arrivals of the laser scans and the world's clock, and the acknowledgement time of our goal, each at its arrival on the monotonic clock. A run's
-record starts with its goal (``begin``) and is read when the run ends (``verdict``): a starved run
-becomes an error record of its own kind (``nav2_rules.starved_not_failed``).
+the arrivals of the laser scans and the world's clock (best effort, as any writer matches), and the
+acknowledgement time of our goal, each at its arrival on the monotonic clock. A run's record starts
+with its goal (``begin``) and is read when the run ends (``verdict``): a starved run becomes an
+error record of its own kind (``nav2_rules.starved_not_failed``).
 """
 from __future__ import annotations
 
