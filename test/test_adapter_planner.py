@@ -371,3 +371,14 @@ def test_a_finding_is_written_as_nav2s_maintainers_ask_for_one(tmp_path):
         write_finding(rows, "case", problem, params, 5, tmp_path, "maybe", "", "")
     with pytest.raises(ValueError, match="no row"):
         write_finding(rows, "other", problem, params, 5, tmp_path, "new", "", "")
+    with pytest.raises(ValueError, match="exists"):  # a report is never replaced
+        write_finding(rows, "case", problem, params, 5, tmp_path, "known", "", "other words")
+    assert "#5908" in page.read_text()
+    # a shrunk scenario's map (``ambiegen shrink``): its cleared cells are free in what map_server loads
+    from ambiegen_ros.problems.robot.problem import CLEARED
+
+    ys, xs = np.nonzero(problem.environment(scenario).grid)
+    shrunk = {**scenario.to_dict(), "metadata": {CLEARED: [[int(xs[0]), int(ys[0])]]}}
+    small = write_finding([{**row, "scenario": shrunk}], "case", problem, params, 5, tmp_path / "small", "new", "", "")
+    grid = read_pgm(small.parent / "case.pgm")
+    assert grid.sum() == occupied.sum() - 25 and not grid[5 * ys[0]:5 * ys[0] + 5, 5 * xs[0]:5 * xs[0] + 5].any()

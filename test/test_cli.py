@@ -261,7 +261,7 @@ def test_every_command_that_scores_or_runs_a_scenario_takes_the_same_config_opti
     options = {name: next((a for a in cmd["actions"] if a["dest"] == "config"), None) for name, cmd in commands.items()}
     takes = sorted(name for name, action in options.items() if action)
     assert takes == ["campaign", "compare", "evaluate", "execute", "experiment", "planner-report", "rerun", "search",
-                     "show", "stack-search"]
+                     "show", "shrink", "stack-search"]
     assert len({json.dumps(options[name], sort_keys=True) for name in takes}) == 1
 
 

@@ -37,5 +37,5 @@ def test_help_lists_the_commands_in_their_usual_order():
     listed = [line.split()[0] for line in run.stdout.splitlines()
               if line.startswith("    ") and not line.startswith("     ")]
     assert listed == ["search", "evaluate", "show", "execute", "campaign", "replay", "recover", "rerun", "compare",
-                      "stack-search", "planner-report", "experiment",
+                      "stack-search", "shrink", "planner-report", "experiment",
                       "nav2-params", "robot-profile", "doctor"]

@@ -16,12 +16,13 @@ from .common import EXIT_BAD_INPUT
 
 REGISTRARS = ("search", "evaluate", "execute", "campaign", "trials", "experiment", "nav2", "doctor")
 """The command modules, each with its ``register(sub)``; in ``--help`` order: search, evaluate, show,
-execute, campaign, replay, recover, rerun, compare, stack-search, planner-report, experiment, nav2-params,
+execute, campaign, replay, recover, rerun, compare, stack-search, shrink, planner-report, experiment, nav2-params,
 robot-profile, doctor."""
 
 COMMANDS = {"search": "search", "evaluate": "evaluate", "show": "evaluate", "execute": "execute",
             "campaign": "campaign", "replay": "campaign", "recover": "campaign", "rerun": "trials",
-            "compare": "trials", "stack-search": "trials", "planner-report": "trials", "experiment": "experiment",
+            "compare": "trials", "stack-search": "trials", "shrink": "trials", "planner-report": "trials",
+            "experiment": "experiment",
             "nav2-params": "nav2", "robot-profile": "nav2", "doctor": "doctor"}
 """Command -> the module of ``REGISTRARS`` that registers it (test/test_cli.py checks the two agree)."""
 
@@ -41,7 +42,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
-STOPPABLE = ("campaign", "replay", "experiment", "rerun", "compare", "stack-search")
+STOPPABLE = ("campaign", "replay", "experiment", "rerun", "compare", "stack-search", "shrink")
 """Commands with processes, pools or files to close: SIGTERM, SIGHUP and SIGINT stop them alike, the
 children stopped and waited for, and the exit status is 128 + the signal's number."""
 

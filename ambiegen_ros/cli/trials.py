@@ -24,7 +24,7 @@ STACK_HELP = ("nd: our Nearness Diagram robot on Nav2's topics (no ROS needed); 
               "(docs/planner_oracles.md; no --overlay unless given) (Nav2 stacks need a sourced ROS 2 Jazzy)")
 
 
-def _common(p: argparse.ArgumentParser, many: bool, search: bool = False) -> None:
+def _common(p: argparse.ArgumentParser, many: bool, search: bool = False, shrink: bool = False) -> None:
     from ..core.names import ALGORITHMS, PROFILES
     from ..trials.configs import STACKS
 
@@ -50,7 +50,7 @@ def _common(p: argparse.ArgumentParser, many: bool, search: bool = False) -> Non
                          "nav2_params.yaml; the others overlays; fix:NAME is the package's config/nav2/fixes/NAME.yaml)"
                          + ("; give two or more, the first is the baseline" if many else
                             "; one (our ND stack: optional)")))
-    if not search:
+    if not search and not shrink:
         p.add_argument("--repeat", type=int, default=3, metavar="N", help="runs of each scenario on each "
                        "configuration (default 3); runs already in --results count")
     p.add_argument("--results", required=True, metavar="FILE.jsonl", help="the results file: one row per run, "
@@ -96,7 +96,7 @@ def _common(p: argparse.ArgumentParser, many: bool, search: bool = False) -> Non
     p.add_argument("--our-transport", choices=("dds",), default=None, help="dds: run robot_world, the recorder "
                    "and the adapter on Cyclone DDS from PyPI, without rclpy's executor (less CPU: docs/speed.md), "
                    "beside a Nav2 on rmw_cyclonedds_cpp (default: the transport of this command)")
-    if not search:
+    if not search and not shrink:
         p.add_argument("--no-run", action="store_true", help="run nothing: the tables of what --results holds")
 
 
@@ -130,6 +130,23 @@ def register(sub) -> None:
                                    "--results.")
     _common(p, many=False, search=True)
     p.set_defaults(func=cmd_search, many=False)
+    p = sub.add_parser("shrink", help="shrink a failing scenario on a stack to the fewest walls and cells that keep its "
+                                      "failure, as a fuzzer minimises an input: every try a real run",
+                       description="Delta debugging (ddmin) on a supervised stack (ambiegen_ros/trials/shrink.py): the "
+                                   "scenario runs first, and its failure (the kind and, on the planner stack, the "
+                                   "oracle) is the one to keep; then whole walls and border sides are taken away, "
+                                   "then single cells, while a run still fails the same way. The genome stays; the "
+                                   "cells taken away are listed in the scenario's metadata (cleared_cells). Writes "
+                                   "the minimal scenario as a suite for `rerun` and `planner-report`.")
+    _common(p, many=False, shrink=True)
+    p.add_argument("--scenario", metavar="NAME", help="the scenario to shrink, by its name in the suite (needed when "
+                   "the suite holds more than one)")
+    p.add_argument("--tries", type=int, default=1, metavar="K", help="runs of each try at most: a try keeps the "
+                   "failure when one of them fails the same way (default 1; a failure that comes and goes, as a "
+                   "crash of undefined behaviour does, needs 3 or more)")
+    p.add_argument("--minimal", metavar="FILE.json", help="where the minimal scenario goes, as a suite (default: "
+                   "RESULTS's folder / <its name>_minimal_suite.json; never replaced)")
+    p.set_defaults(func=cmd_shrink, many=False)
     p = sub.add_parser("planner-report", help="write a planner finding as Nav2's maintainers ask for one: map (yaml + "
                                               "pgm), params, start and goal, a script for a stock Jazzy, reruns",
                        description="From the rows of `ambiegen rerun --stack planner --repeat N`, one scenario's "
@@ -341,6 +358,70 @@ def cmd_search(args) -> int:
     written = report.write(suite, results, [config.label], args.out or str(results.parent / f"{results.stem}_reports"),
                            utc_stamp(), "rerun")
     print(f"written: {written['md']}, {written['json']}")
+    for picture in written.get("pictures", []):
+        print(f"picture: {picture}")
+    return code
+
+
+def cmd_shrink(args) -> int:
+    from ..trials import report
+    from ..trials.configs import NAV2_STACKS, StackConfig, parse_config, prepare
+    from ..trials.runner import StackStopped, utc_stamp
+    from ..trials.shrink import run_shrink
+    from ..trials.suite import Entry, Suite, load_suite, problem_of, scenario_key
+
+    if args.tries < 1:
+        raise BadInput("--tries: at least 1")
+    if len(args.params) > 1:
+        raise BadInput("shrink: one --params")
+    if not args.params and args.stack in NAV2_STACKS:
+        raise BadInput(f"--stack {args.stack}: name your Nav2 params with --params")
+    results = Path(args.results)
+    minimal_file = Path(args.minimal) if args.minimal else results.parent / f"{results.stem}_minimal_suite.json"
+    for path in (results, minimal_file):
+        if path.exists():
+            raise BadInput(f"{path} exists: a shrink starts files of its own (never appended to or replaced)")
+    suite = load_suite(args.suite, args.config, args.profile)
+    if suite.problem != "robot":
+        raise BadInput(f"a shrink takes robot scenarios (walls to take away); the suite's are {suite.problem}")
+    chosen = [e for e in suite.entries if args.scenario is None or e.name == args.scenario]
+    if len(chosen) != 1:
+        names = ", ".join(e.name for e in suite.entries[:8]) + (" ..." if len(suite.entries) > 8 else "")
+        raise BadInput(f"--scenario: {'no scenario called ' + repr(args.scenario) if args.scenario and not chosen else 'name one of'} "
+                       f"the suite's {len(suite.entries)} ({names})")
+    entry = chosen[0]
+    config = parse_config(args.params[0]) if args.params else StackConfig("nd", ())
+    settings = _settings(args, results)
+    settings.repeat = args.tries
+    if args.stack in NAV2_STACKS:
+        _need_ros(args.stack)
+    settings.bags.mkdir(parents=True, exist_ok=True)
+    prepared = prepare(config, args.stack, _overlay(args) if args.stack in NAV2_STACKS else None, args.time_scale,
+                       settings.bags, settings.robot)
+    print(f"shrink: {entry.name} on {args.stack}, up to {args.tries} run(s) a try; rows to {results}")
+    code = 0
+    feed = None
+    try:
+        feed = run_shrink(problem_of(suite), entry, suite, prepared, settings, args.tries)
+    except StackStopped as exc:
+        print(f"ambiegen shrink: stopped: {exc}", file=sys.stderr)
+        code = 1
+    except KeyboardInterrupt:
+        print(f"ambiegen shrink: interrupted; the tries made are in {results}", file=sys.stderr)
+        code = 130
+    if feed is None or feed.minimal is None or feed.step != "done":
+        return code or 1
+    minimal_file.parent.mkdir(parents=True, exist_ok=True)
+    name = f"{entry.name}_minimal"
+    minimal_file.write_text(json.dumps({"problem": "robot", "problem_config": suite.problem_config,
+                                        "suite": [{"name": name, "scenario": feed.minimal,
+                                                   "note": "; ".join(feed.history)}]}, indent=1) + "\n")
+    print(f"written: {minimal_file} ({feed.count} tries)")
+    shown = Suite("robot", suite.problem_config,
+                  [entry, Entry(name=name, scenario=feed.minimal, key=scenario_key(feed.minimal, suite.problem_config))],
+                  suite.sources)
+    written = report.write(shown, results, [config.label], args.out or str(results.parent / f"{results.stem}_reports"),
+                           utc_stamp(), "rerun")
     for picture in written.get("pictures", []):
         print(f"picture: {picture}")
     return code

@@ -173,6 +173,8 @@ def write_finding(rows: Sequence[dict], name: str, problem: Any, params_file: Pa
     runs = [r for r in rows if r.get("scenario_name") == name]
     if not runs:
         raise ValueError(f"no row of scenario {name!r}")
+    if (out / f"{name}.md").exists():
+        raise ValueError(f"{out / f'{name}.md'} exists: a report is never replaced (choose another -o)")
     out.mkdir(parents=True, exist_ok=True)
     first = runs[0]
     scenario = problem.parse(first["scenario"])

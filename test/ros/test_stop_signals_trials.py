@@ -1,4 +1,4 @@
-"""``rerun``, ``compare`` and ``stack-search`` stop cleanly on any stop signal (issue 70), on our ND stack.
+"""``rerun``, ``compare``, ``stack-search`` and ``shrink`` stop cleanly on any stop signal (issue 70), on our ND stack.
 
 Each command runs as a user's script runs it (under ``timeout -s TERM``, whose SIGTERM we send, or
 in the background with SIGINT ignored) and is stopped once its first run's line is out: the
@@ -116,6 +116,19 @@ def test_stack_search_stops_its_stack(tmp_path, ros_domain, how, sig):
         cmd.wait_for(cmd.said("[1/"), "first run")
         cmd.stop(sig)
         assert stopped_cleanly(cmd, sig, results)
+    finally:
+        cmd.kill_all()
+
+
+@pytest.mark.parametrize("how, sig", STOPS)
+def test_shrink_stops_its_stack_and_writes_no_minimal_suite(tmp_path, suite_file, ros_domain, how, sig):
+    results = tmp_path / "shrink.jsonl"
+    cmd = trials("shrink", suite_file, results, ros_domain, how, "--scenario", "case0")
+    try:
+        cmd.wait_for(cmd.said("[1/"), "first run")
+        cmd.stop(sig)
+        assert stopped_cleanly(cmd, sig, results)
+        assert not (tmp_path / "shrink_minimal_suite.json").exists()  # half a shrink is not a minimal map
     finally:
         cmd.kill_all()
 

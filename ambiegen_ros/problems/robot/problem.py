@@ -53,6 +53,32 @@ class RobotMap:
         return [self.to_metres(c) for c in self.path]
 
 
+CLEARED = "cleared_cells"  # a scenario's metadata key: map cells made free (a shrunk finding's)
+
+
+def cleared_cells(metadata: dict, map_size: int) -> np.ndarray | None:
+    """The cells a scenario's ``metadata["cleared_cells"]`` frees, as (K, 2) ``[x, y]``; None without.
+
+    The paper's genome cannot remove a wall (wall i lies on row i + 1), so a failing scenario shrunk
+    to a minimal map (``ambiegen shrink``) keeps its genome and lists the wall and border cells it
+    freed; every map made of it (the message, the world, the pictures) has them free."""
+    value = (metadata or {}).get(CLEARED)
+    if value is None:
+        return None
+    bad = ScenarioError(f"metadata.{CLEARED}", "must be a list of [x, y] cells of the map",
+                        f"integers 0..{map_size - 1}")
+    try:
+        cells = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise bad from None
+    if cells.size == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    if cells.ndim != 2 or cells.shape[1] != 2 or not np.all(np.isfinite(cells)) \
+            or not np.all(cells == np.rint(cells)) or not np.all((cells >= 0) & (cells < map_size)):
+        raise bad
+    return cells.astype(np.int64)
+
+
 # Attribute domains and lengths per profile. The replication code's generator draws one element
 # per level 1..49 (1 + (map_size - 2)) with positions 1..49; it scores any number of levels (a
 # missing level is an empty row), so shorter scenarios, like the refined profile's 48, are accepted.
@@ -177,13 +203,17 @@ class RobotProblem(Problem):
         return G
 
     # --- fitness -------------------------------------------------------------------------
-    def planning_grids(self, G: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Raw occupancy and the radius-inflated grid the planners use (the mapped walls only)."""
+    def planning_grids(self, G: np.ndarray, lengths: np.ndarray,
+                       cleared: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Raw occupancy and the radius-inflated grid the planners use (the mapped walls only),
+        with ``cleared`` cells ((K, 2) x, y: ``cleared_cells``) made free in every grid first."""
         if self.hazards:
             from ..robot_hazards import N_WALLS
 
             G, lengths = np.asarray(G)[:, :N_WALLS, :3], np.full(len(G), N_WALLS)
         grids = build_grids(G, lengths, self.config)
+        if cleared is not None and len(cleared):
+            grids[:, cleared[:, 1], cleared[:, 0]] = False
         planning = inflate(grids, self.config.robot_radius, self.config.resolution, INFLATION_RULE[self.profile])
         if self.profile == "replication":  # its planner never checks the start: the robot leaves it
             sx, sy = self.config.start
@@ -215,11 +245,48 @@ class RobotProblem(Problem):
         return Evaluation(f1, valid, reasons, {**metrics, "wall_cells": wall_cells})
 
     # --- environment ---------------------------------------------------------------------
+    def parse(self, data: dict[str, Any]) -> Scenario:
+        scenario = self.codec.validate(data)
+        cleared_cells(scenario.metadata, self.config.map_size)  # one clear line now, not at the map's making
+        return scenario
+
+    def map_parts(self, scenario: Scenario) -> list[tuple[str, np.ndarray]]:
+        """The scenario's map as the parts a shrink takes away: each wall's cells (``wall <i>``), then
+        each side of the border, as (K, 2) ``[x, y]``; cells already cleared are left out, a cell of
+        two walls is in both, and an empty part is dropped."""
+        G, lengths = self.codec.split(self.codec.to_row(scenario))
+        walls = min(int(lengths[0]), G.shape[1])
+        if self.hazards:
+            from ..robot_hazards import N_WALLS
+
+            walls = N_WALLS
+        G = np.asarray(G[0, :walls, :3], dtype=float)
+        alone = np.repeat(G[None], max(walls, 1), axis=0)  # batch i: wall i alone (the others of no kind)
+        for i in range(walls):
+            alone[i, np.arange(walls) != i, 0] = -1
+        grids = build_grids(alone, np.full(len(alone), walls), self.config)
+        n = self.config.map_size
+        border = np.zeros((n, n), dtype=bool)
+        border[0, :] = border[-1, :] = border[:, 0] = border[:, -1] = True
+        cleared = cleared_cells(scenario.metadata, n)
+        present = np.ones((n, n), dtype=bool)
+        if cleared is not None and len(cleared):
+            present[cleared[:, 1], cleared[:, 0]] = False
+        sides = {"border south": np.s_[0, :], "border north": np.s_[-1, :], "border west": np.s_[1:-1, 0],
+                 "border east": np.s_[1:-1, -1]}
+        masks = [(f"wall {i}", grids[i] & ~border) for i in range(walls)]
+        for name, side in sides.items():
+            mask = np.zeros((n, n), dtype=bool)
+            mask[side] = True
+            masks.append((name, mask))
+        return [(name, np.argwhere(mask & present)[:, ::-1]) for name, mask in masks if (mask & present).any()]
+
     def environment(self, scenario: Scenario) -> RobotMap:
         G, lengths = self.codec.split(self.codec.to_row(scenario))
+        cleared = cleared_cells(scenario.metadata, self.config.map_size)
         if self.hazards:
-            return self._hazard_environment(G[0], int(lengths[0]))
-        grids, planning = self.planning_grids(G, lengths)
+            return self._hazard_environment(G[0], int(lengths[0]), cleared)
+        grids, planning = self.planning_grids(G, lengths, cleared)
         length, path = astar(planning[0], self.config.start, self.config.goal, self.config.diagonal)
         res = self.config.resolution
         out = RobotMap(grids[0], res, self.config.start, self.config.goal, (0.0, 0.0), (0.0, 0.0))
@@ -270,14 +337,14 @@ class RobotProblem(Problem):
             metrics[cfg.objective] = f1.copy()
         return Evaluation(f1, valid, reasons, metrics)
 
-    def _hazard_environment(self, cells: np.ndarray, length: int) -> "RobotMap":
+    def _hazard_environment(self, cells: np.ndarray, length: int, cleared: np.ndarray | None = None) -> "RobotMap":
         """The mapped walls, the poses, the route hazards sit on (``path``) and the unmapped
         obstacles (``unmapped``)."""
         from .. import robot_hazards as hz
 
         cfg = self.config
         settings = hz.HazardSettings.of(cfg)
-        grids, planning = self.planning_grids(cells[None], np.array([length]))
+        grids, planning = self.planning_grids(cells[None], np.array([length]), cleared)
         layout = hz.decode(cells, length, settings)
         res = cfg.resolution
         out = RobotMap(grids[0], res, layout.start, layout.goal, (0.0, 0.0), (0.0, 0.0),
