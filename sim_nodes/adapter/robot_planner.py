@@ -180,6 +180,10 @@ def plan_outcome(costmap: Costmap, rules: plan_rules.PlannerRules, start: tuple,
     }
     if answer.smooth_error:
         metrics["smooth_error"] = answer.smooth_error
+    if answer.smoothed is not None and not error:  # the smoother answered: its path, as the input's figures
+        metrics["smoothed_poses"] = len(answer.smoothed)
+        smoothed_near = clearance(costmap, answer.smoothed) if len(answer.smoothed) else math.inf
+        metrics["smoothed_clearance_m"] = None if math.isinf(smoothed_near) else round(smoothed_near, 4)
     performance = next((n for n in judgement.notes if n.kind == "performance"), None)
     if performance is not None:
         metrics["plan_performance"] = performance.detail
