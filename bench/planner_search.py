@@ -140,6 +140,30 @@ def report() -> None:
                   f"one-sided p {p:.4g}{tag}")
 
 
+def draw_closest(keeps: list[str], out: Path) -> None:
+    """Per plugin, the path that held closest to a lethal cell over every kept run, drawn (``--keep``
+    folders hold each run's findings and its closest call): what a planner survived, seen."""
+    from ambiegen_ros.run_config import make_run
+    from ambiegen_ros.viz.trials import save_runs_side_by_side
+
+    problem = make_run("robot", str(REPO / CONFIG), seed=0)[0]
+    best: dict[str, tuple[float, dict, str]] = {}
+    for folder in keeps:
+        for path in sorted(Path(folder).glob("*.jsonl")):
+            for line in path.read_text().splitlines():
+                row = json.loads(line)
+                near = clearance_of(row) if row["failure_kind"] == "none" else None
+                plugin = row.get("metrics", {}).get("planner", row["label"])
+                if near is not None and (plugin not in best or near < best[plugin][0]):
+                    best[plugin] = (near, row, path.stem)
+    out.mkdir(parents=True, exist_ok=True)
+    for plugin, (near, row, run_name) in sorted(best.items()):
+        title = f"{plugin}: closest call, {near:.3f} m from a lethal cell's centre (run {run_name})"
+        picture = save_runs_side_by_side(problem, problem.parse(row["scenario"]), [(title, [row])],
+                                         out / f"{row['label']}_closest.png", title)
+        print(f"{plugin}: {near:.4f} m, {picture}")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--setup", default=os.environ.get("AMBIEGEN_ROS_SETUP", ""), help="a Jazzy install's setup.bash")
@@ -150,9 +174,16 @@ def main() -> int:
     ap.add_argument("--domain-id", type=int, default=6, help="a ROS domain no test or other run uses")
     ap.add_argument("--keep", default="", help="a folder for the rows of the run's findings and its closest call")
     ap.add_argument("--report", action="store_true")
+    ap.add_argument("--draw-closest", nargs="+", metavar="KEEP", help="draw each plugin's closest call of these "
+                    "--keep folders into --out")
+    ap.add_argument("--out", default=str(REPO / "bench" / "results" / "planner_closest"), help="where --draw-closest "
+                    "draws")
     args = ap.parse_args()
     if args.report:
         report()
+        return 0
+    if args.draw_closest:
+        draw_closest(args.draw_closest, Path(args.out))
         return 0
     if not args.setup or not Path(args.setup).exists():
         raise SystemExit("--setup: a ROS 2 Jazzy install's setup.bash with Nav2's planner_server (or AMBIEGEN_ROS_SETUP)")
