@@ -260,6 +260,7 @@ def nav2_stack(ns: str, mode: str, params: dict, scaled: Path, seed: int, tag: s
         # a bringup that gave up is started again: ours and nav2_bringup's stacks, never a user's own
         "nav2_lifecycle_manager": "" if mode == "external" else "/".join(filter(None, (ns, "lifecycle_manager_navigation"))),
         "nav2_clear_costmaps": ",".join(at(f"/{c}_costmap/clear_entirely_{c}_costmap") for c in ("global", "local")),
+        "timing_scan_topic": at("/scan"), "timing_clock_topic": at("/clock"),  # its own world's silences
         "map_upsample": upsample,
         "tick_period": 0.05,  # a turn every 50 ms (Nav2 controls at 20 Hz): its verdict follows stamps, not turns
         "settle_time": 1.0, "start_timeout": start_timeout,

@@ -1,7 +1,8 @@
 """A starved stack is never a failure (issue 70), in the adapter, without a node or a middleware: the
-Nav2 judge's timing watch fed /rosout lines, /cmd_vel_nav messages and our goal's acknowledgement
-on a stand-in node, and ``SutAdapter.finish`` on a stand-in adapter turning a starved Nav2 abort
-(or pass) into an error record of the kind ``starved``, its figures in the result's metrics."""
+Nav2 judge's timing watch fed /rosout lines, /cmd_vel_nav messages, the world's /clock and our
+goal's acknowledgement on a stand-in node, and ``SutAdapter.finish`` on a stand-in adapter turning a
+starved Nav2 abort (or pass) into an error record of the kind ``starved``, its figures in the result's
+metrics."""
 from __future__ import annotations
 
 import sys
@@ -128,3 +129,34 @@ def test_our_goal_acknowledged_late_starves_the_run(robot):
     figures, reason = judge.timing.verdict()
     assert figures["timing.ack_s"] > 0.0 and "to acknowledge our goal" in reason
 
+
+def test_the_worlds_silence_limit_reaches_the_watch_and_nav2_drives_from_its_answer_to_the_end(robot,
+                                                                                               monkeypatch):
+    from sim_nodes.adapter import timing_watch
+
+    now = [99.0]
+    monkeypatch.setattr(timing_watch, "time", SimpleNamespace(monotonic=lambda: now[0]))
+    for values, limit in (({}, 0.35), ({"starved_world_gap_s": 0.0}, 0.0), ({"time_scale": 2.0}, 0.35),
+                          ({"starved_world_gap_s": 0.35, "time_scale": 0.5}, 0.7)):  # the world's messages 2x apart
+        now[0] = 99.0
+        judge, node, job = watched(robot, **values)  # its goal out at 99.0
+        assert judge.timing.thresholds.max_world_gap_s == limit
+        now[0] = 99.1
+        node.subs["/clock"](REG.new("rosgraph_msgs/msg/Clock"))
+        now[0] = 99.9
+        judge.step(job, view())  # Nav2's answer seen: of the clock's 0.9 s silence around it, 0.1 s count
+        for t in (100.0, 100.2, 100.7, 101.0):  # and a 0.5 s stall while Nav2 drives
+            now[0] = t
+            node.subs["/clock"](REG.new("rosgraph_msgs/msg/Clock"))
+        assert judge.timing.record.span() == (99.9, None)
+        now[0] = 101.1
+        figures, reason = judge.timing.verdict()
+        assert figures["timing.clock_max_gap_s"] == 0.5 and figures["timing.clock_msgs"] == 5
+        assert figures["timing.ack_s"] == 0.9
+        if limit == 0.35:
+            assert reason == "the world's /clock was silent for 0.50 s (limit 0.35 s)"
+        else:
+            assert reason is None, values
+        now[0] = 103.0
+        node.subs["/clock"](REG.new("rosgraph_msgs/msg/Clock"))  # after the run's end: no record keeps it
+        assert judge.timing.record is None and judge.timing.verdict() == ({}, None)

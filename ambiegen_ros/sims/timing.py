@@ -18,18 +18,29 @@ runs more cycles per simulated second, and counting by the sim clock would hide 
   acknowledge goal request for <action>", the lifecycle manager's "Have not received a heartbeat
   from <node>." / "CRITICAL FAILURE: SERVER <node> IS DOWN after not receiving a heartbeat" (one
   lapse, however many of its lines), and the costmaps' stale-data lines (counted, no rule);
-* ``ack(seconds)``: how long Nav2 took to accept or refuse our ``navigate_to_pose`` goal;
-* ``arrival(stream, t)``: one message of a stream the stack lives on, ``scan`` (the laser the
-  costmaps read) and ``clock`` (the world's /clock). Their longest silence in wall time is the age
-  the newest scan reached before the next one came, and the world's longest stall: figures on the
-  record (``timing.<stream>_max_gap_s``), under no rule yet (docs/results/nav2/load.md: what they
-  show on a loaded machine decides whether one is needed).
+* ``goal(t)``, ``ack(seconds, t)``, ``end(t)``: our first goal went out, Nav2 first accepted or
+  refused it (``seconds`` after the goal, the acknowledgement time), the run ended;
+* ``arrival(stream, t)``: one message of a stream of the world the stack lives on, ``scan`` (the
+  laser the costmaps read) and ``clock`` (the world's /clock). Their longest silence while Nav2
+  drives (``timing.<stream>_max_gap_s``) is the age the newest scan reached before the next one
+  came, and the world's longest stall.
 
 The loop rate is read in windows of ``window_s`` (2 s: 40 cycles at 20 Hz, enough that one slow
 cycle does not decide, short enough that a starved stretch the mean hides still shows), slid over
 each stretch of following: arrivals split where ``/cmd_vel_nav`` fell silent longer than
 ``idle_gap_s`` (a recovery or the goal's end: the controller is idle, not slow) unless the
 controller said it missed its rate during that silence (a stalled cycle, not an idle one).
+
+The world's silence (``max_world_gap_s``) is the machine's doing too: our world stood still while
+Nav2's controller kept its wall-clock rate, which no real robot's world does. It is read while Nav2
+drives, from its first answer to our goal (else from the goal) to the run's end, and only the part
+of a silence inside that span counts. Before the answer our own judge sets the run up: in a hazards
+scenario its first sample plans the route, 0.2 s in which the adapter reads no message, and that
+silence is ours, not the world's (the acknowledgement's rule watches that stretch). A gap before a
+stream's first message or after its last one is no silence of a stream heard (it may not have been
+up yet, or the run ended): a stream never heard, or heard once, has no figure and trips no rule. On
+our receive clock a silence is the world's stall and our adapter's own wait for the CPU together:
+either way the machine's.
 """
 from __future__ import annotations
 
@@ -50,7 +61,14 @@ class Thresholds:
     """When a run is ``starved`` (defaults: docs/external_sut.md). ``max_ack_s``: our goal's
     acknowledgement, bt_navigator's own ``wait_for_service_timeout`` (1000 ms in jazzy's
     nav2_params.yaml); its tree's nodes wait ``default_server_timeout`` (20 ms), and each time they
-    give up they say so on /rosout (``late_acks``)."""
+    give up they say so on /rosout (``late_acks``).
+
+    ``max_world_gap_s``, wall seconds (docs/results/nav2/load.md, random-8 at time scale 1): the
+    longest silence our adapter heard was 0.17-0.22 s for /scan and 0.16-0.18 s for /clock on a quiet
+    machine (3 runs), 0.49-0.74 s and 0.49-1.37 s beside two busy loops (6 runs); 0.35 s lies between,
+    0.13-0.14 s from each. Those figures span the whole record, and most of them were our judge's
+    start; while Nav2 drove, the recorder heard the world's scans at most 0.11 s apart quiet and
+    0.20-0.57 s apart under load. The sample is small; a laser at 5 Hz or slower leaves little margin."""
 
     window_s: float = 2.0
     min_rate_share: float = 0.5  # worst window's loop rate under this share of controller_frequency
@@ -59,6 +77,7 @@ class Thresholds:
     max_ack_s: float = 1.0
     max_late_acks: int = 0  # any BT give-up on a late acknowledgement
     max_bond_lapses: int = 0  # any lapsed bond
+    max_world_gap_s: float = 0.35  # the world's /scan or /clock silent longer while Nav2 drives (0: no rule)
 
 
 @dataclass
@@ -74,15 +93,31 @@ class TimingRecord:
     stale: int = 0
     acks: list[float] = field(default_factory=list)
     arrivals: dict[str, list[float]] = field(default_factory=dict)
+    goal_at: float | None = None  # our first goal went out
+    answered_at: float | None = None  # Nav2 first accepted or refused it
+    ended_at: float | None = None  # the run ended
 
     def arrival(self, stream: str, t: float) -> None:
         self.arrivals.setdefault(stream, []).append(float(t))
 
+    def goal(self, t: float) -> None:
+        if self.goal_at is None:  # a goal sent again does not move the run's start
+            self.goal_at = float(t)
+
+    def end(self, t: float) -> None:
+        self.ended_at = float(t)
+
+    def span(self) -> tuple[float | None, float | None]:
+        """While Nav2 drives: from its first answer (else our goal) to the end (None: open)."""
+        return (self.answered_at if self.answered_at is not None else self.goal_at), self.ended_at
+
     def loop(self, t: float) -> None:
         self.loops.append(float(t))
 
-    def ack(self, seconds: float) -> None:
+    def ack(self, seconds: float, t: float | None = None) -> None:
         self.acks.append(float(seconds))
+        if t is not None and self.answered_at is None:
+            self.answered_at = float(t)
 
     def log(self, t: float, name: str, text: str) -> None:
         """One /rosout line (``name``: its logger) sorted into what it says, or ignored."""
@@ -152,6 +187,21 @@ def worst_missed_share(missed: list[float], hz: float, window_s: float) -> float
     return most / (hz * window_s)
 
 
+def longest_gap(times: list[float], start: float | None = None, end: float | None = None) -> float | None:
+    """The longest silence between two arrivals, only its part inside the run ``[start, end]``
+    (None: no two arrivals around a moment of the run)."""
+    lo = -float("inf") if start is None else start
+    hi = float("inf") if end is None else end
+    gaps = [min(b, hi) - max(a, lo) for a, b in zip(times, times[1:]) if b > lo and a < hi]
+    return max(gaps) if gaps else None
+
+
+def world_gaps(record: TimingRecord) -> dict[str, float]:
+    """Each world stream's longest silence while Nav2 drove (streams without one left out)."""
+    gaps = {s: longest_gap(t, *record.span()) for s, t in sorted(record.arrivals.items())}
+    return {s: g for s, g in gaps.items() if g is not None}
+
+
 def summary(record: TimingRecord, th: Thresholds = Thresholds()) -> dict[str, float]:
     """The record as flat numbers (the result's ``timing.*`` metrics; absent ones left out)."""
     hz = record.controller_hz
@@ -167,8 +217,8 @@ def summary(record: TimingRecord, th: Thresholds = Thresholds()) -> dict[str, fl
         out["timing.ack_s"] = round(max(record.acks), 4)
     for stream, times in sorted(record.arrivals.items()):
         out[f"timing.{stream}_msgs"] = len(times)
-        if len(times) > 1:
-            out[f"timing.{stream}_max_gap_s"] = round(max(b - a for a, b in zip(times, times[1:])), 4)
+    for stream, gap in world_gaps(record).items():
+        out[f"timing.{stream}_max_gap_s"] = round(gap, 4)
     return out
 
 
@@ -190,7 +240,11 @@ def starved(record: TimingRecord, th: Thresholds = Thresholds()) -> str | None:
         why.append(f"it took {max(record.acks):.2f} s to acknowledge our goal (over {th.max_ack_s:g} s)")
     if len(record.lapses) > th.max_bond_lapses:
         why.append(f"its lifecycle manager lost the bond of {', '.join(sorted({n for _, n in record.lapses}))}")
+    for stream, gap in world_gaps(record).items():
+        if 0 < th.max_world_gap_s < gap:
+            why.append(f"the world's /{stream} was silent for {gap:.2f} s (limit {th.max_world_gap_s:g} s)")
     return "; ".join(why) or None
 
 
-__all__ = ["TimingRecord", "Thresholds", "starved", "summary", "stretches", "worst_window_hz", "worst_missed_share"]
+__all__ = ["TimingRecord", "Thresholds", "longest_gap", "starved", "summary", "stretches", "world_gaps",
+           "worst_window_hz", "worst_missed_share"]

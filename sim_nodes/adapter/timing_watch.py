@@ -5,8 +5,14 @@ adapter's node (either backend): every /rosout line (``rcl_interfaces/msg/Log``)
 the controller's own output (``/cmd_vel_nav``, remapped so by nav2_bringup's navigation_launch.py),
 the arrivals of the laser scans and the world's clock (best effort, as any writer matches), and the
 acknowledgement time of our goal, each at its arrival on the monotonic clock. A run's record starts
-with its goal (``begin``) and is read when the run ends (``verdict``): a starved run becomes an
-error record of its own kind (``nav2_rules.starved_not_failed``).
+with its scenario (``begin``), Nav2 drives from its first answer to our goal (``goal_sent``,
+``answered``), and the record is read and closed when the run ends (``verdict``): a starved run
+becomes an error record of its own kind (``nav2_rules.starved_not_failed``).
+
+The world's silence limit (``starved_world_gap_s``) was measured at ``time_scale`` 1. Under 1 the
+world's messages come 1/k times as far apart in wall time (its 10 Hz scans 0.4 s apart at 0.25),
+so the limit stretches with them (divided by k); above 1 it stays as it is, since what it must
+clear (the machine's scheduling, our adapter's own work) is wall time, not simulated time.
 """
 from __future__ import annotations
 
@@ -35,9 +41,10 @@ TIMING_PARAMS = (
           "goal_mode action: its type (Twist; TwistStamped when Nav2 runs with enable_stamped_cmd_vel)",
           allowed=("geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped")),
     Param("timing_scan_topic", str, "/scan", "goal_mode action: the laser the costmaps read (LaserScan); its "
-                                             "longest silence in a run, timing.scan_max_gap_s ('' = off)"),
-    Param("timing_clock_topic", str, "/clock", "goal_mode action: the world's clock; its longest stall in a run, "
-                                               "timing.clock_max_gap_s ('' = off)"),
+                                             "longest silence while Nav2 drives, timing.scan_max_gap_s, under "
+                                             "starved_world_gap_s ('' = off)"),
+    Param("timing_clock_topic", str, "/clock", "goal_mode action: the world's clock; its longest stall while Nav2 "
+                                               "drives, timing.clock_max_gap_s, under starved_world_gap_s ('' = off)"),
     Param("controller_frequency", float, 20.0, "goal_mode action: Nav2's controller_frequency [Hz] (a missed-rate "
                                                "line naming another wins)", minimum=0, above=True),
     Param("starved_window_s", float, timing.Thresholds.window_s, "goal_mode action: wall seconds per window of the "
@@ -47,12 +54,17 @@ TIMING_PARAMS = (
           "share of its cycles missed, is starved: an error record, run again, never a failure", minimum=0),
     Param("starved_ack_s", float, timing.Thresholds.max_ack_s, "goal_mode action: a goal Nav2 took longer to "
                                                                "acknowledge starves the run [s]", minimum=0),
+    Param("starved_world_gap_s", float, timing.Thresholds.max_world_gap_s,
+          "goal_mode action: the world's scans or clock (timing_scan_topic, timing_clock_topic) silent longer than "
+          "this while Nav2 drives (from its answer to our goal to the run's end) starve the run: our world stood "
+          "still while Nav2 kept its wall-clock rate [wall s; divided by time_scale under 1] (0 = off)", minimum=0),
 )
 
 
 def thresholds(settings: Any) -> timing.Thresholds:
     return timing.Thresholds(window_s=settings.starved_window_s, min_rate_share=settings.starved_rate_share,
-                             max_missed_share=settings.starved_rate_share, max_ack_s=settings.starved_ack_s)
+                             max_missed_share=settings.starved_rate_share, max_ack_s=settings.starved_ack_s,
+                             max_world_gap_s=settings.starved_world_gap_s / min(1.0, settings.time_scale))
 
 
 class TimingWatch:
@@ -90,15 +102,21 @@ class TimingWatch:
 
     def goal_sent(self) -> None:
         self.sent = time.monotonic()
+        if self.record is not None:
+            self.record.goal(self.sent)
 
     def answered(self) -> None:
         """Nav2 accepted or refused the goal sent last: its acknowledgement time is on record."""
         if self.record is not None and self.sent is not None:
-            self.record.ack(time.monotonic() - self.sent)
+            now = time.monotonic()
+            self.record.ack(now - self.sent, now)
         self.sent = None
 
     def verdict(self) -> tuple[dict[str, float], str | None]:
-        """The run's figures (``timing.*``) and why it was starved (None: it was not)."""
+        """The run's figures (``timing.*``) and why it was starved (None: it was not); the record ends
+        here, and what comes until the next run's ``begin`` is kept by no record."""
         if self.record is None:
             return {}, None
-        return timing.summary(self.record, self.thresholds), timing.starved(self.record, self.thresholds)
+        record, self.record = self.record, None
+        record.end(time.monotonic())
+        return timing.summary(record, self.thresholds), timing.starved(record, self.thresholds)

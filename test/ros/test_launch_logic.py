@@ -281,6 +281,7 @@ def test_nav2_stacks_each_get_a_namespace_a_clock_and_params_of_their_own(tmp_pa
         assert adapter["nav2_lifecycle_nodes"].split(",")[0] == f"{ns}/planner_server"
         assert adapter["nav2_lifecycle_manager"] == f"{ns}/lifecycle_manager_navigation"
         assert adapter["nav2_clear_costmaps"].startswith(f"/{ns}/global_costmap/")
+        assert (adapter["timing_scan_topic"], adapter["timing_clock_topic"]) == (f"/{ns}/scan", f"/{ns}/clock")
     workers = [n.parameters["worker_id"] for n in p.nodes if n.executable == "sut_adapter"]
     assert len(set(workers)) == 2
     assert "/stack1/scan" in p.node("recorder").parameters["extra_topics"].split(",")

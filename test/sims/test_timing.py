@@ -1,7 +1,8 @@
 """The timing record of a Nav2 run and its rule ``starved`` (``ambiegen_ros.sims.timing``), on crafted
 event streams: a clean run, one bad window the mean hides, a stall the controller owned up to, a
-recovery's silence, a late acknowledgement (ours and the tree's), a lapsed bond. The log lines are
-navigation2 jazzy's own words (controller_server.cpp, bt_action_node.hpp, lifecycle_manager.cpp)."""
+recovery's silence, a late acknowledgement (ours and the tree's), a lapsed bond, the world's stall.
+The log lines are navigation2 jazzy's own words (controller_server.cpp, bt_action_node.hpp,
+lifecycle_manager.cpp)."""
 from __future__ import annotations
 
 import pytest
@@ -93,17 +94,67 @@ def test_other_lines_are_ignored_and_stale_data_only_counted():
     assert starved(r) is None and summary(r)["timing.stale_data"] == 1
 
 
-def test_the_longest_silence_of_the_scans_and_the_clock_is_on_the_record_under_no_rule():
+def world(r: TimingRecord, stream: str, *times: list[float]) -> TimingRecord:
+    for t in sorted(t for s in times for t in s):
+        r.arrival(stream, t)
+    return r
+
+
+def test_the_longest_silence_of_the_scans_and_the_clock_is_on_the_record():
     r = record(ticks(0.0, 4.0, 20.0))
-    for t in ticks(0.0, 1.0, 10.0) + ticks(1.8, 1.0, 10.0):  # a 10 Hz laser silent from 0.9 s to 1.8 s
-        r.arrival("scan", t)
-    for t in ticks(0.0, 4.0, 100.0):
-        r.arrival("clock", t)
+    world(r, "scan", ticks(0.0, 1.0, 10.0), ticks(1.8, 1.0, 10.0))  # a 10 Hz laser silent from 0.9 s to 1.8 s
+    world(r, "clock", ticks(0.0, 4.0, 100.0))
     out = summary(r)
     assert out["timing.scan_msgs"] == 20 and out["timing.scan_max_gap_s"] == pytest.approx(0.9)
     assert out["timing.clock_max_gap_s"] == pytest.approx(0.01)
-    assert starved(r) is None, "a figure, not yet a rule"
+    assert starved(r) == "the world's /scan was silent for 0.90 s (limit 0.35 s)"
     lone = record(ticks(0.0, 4.0, 20.0))
     lone.arrival("scan", 1.0)
     assert summary(lone)["timing.scan_msgs"] == 1 and "timing.scan_max_gap_s" not in summary(lone)
     assert not any(k.startswith("timing.clock") for k in summary(lone))
+    assert starved(lone) is None, "a stream heard once, or never, is no stall"
+
+
+def test_a_stall_of_the_worlds_clock_starves_the_run_and_says_which_stream():
+    r = world(record(ticks(0.0, 10.0, 20.0)), "clock", ticks(0.0, 5.0, 50.0), ticks(5.48, 4.5, 50.0))
+    world(r, "scan", ticks(0.0, 10.0, 10.0))
+    r.goal(0.0)
+    r.end(10.0)
+    why = starved(r)
+    assert why == "the world's /clock was silent for 0.50 s (limit 0.35 s)" and "/scan" not in why
+    assert summary(r)["timing.clock_max_gap_s"] == pytest.approx(0.5)
+    assert starved(r, Thresholds(max_world_gap_s=0.0)) is None, "0 turns the rule off"
+    assert starved(r, Thresholds(max_world_gap_s=0.6)) is None
+
+
+def test_a_quiet_machines_gaps_do_not_starve_a_run():
+    r = world(record(ticks(0.0, 10.0, 20.0)), "clock", ticks(0.0, 10.0, 5.0))  # 0.2 s apart: a quiet stall
+    world(r, "scan", [0.0, 0.35], ticks(0.55, 9.0, 5.0))  # a 5 Hz laser, one gap of 0.35 s: not longer
+    assert summary(r)["timing.clock_max_gap_s"] == pytest.approx(0.2) and starved(r) is None
+    assert summary(r)["timing.scan_max_gap_s"] == pytest.approx(0.35)
+
+
+def test_only_the_part_of_a_silence_while_nav2_drives_counts():
+    r = record(ticks(0.0, 10.0, 20.0))
+    world(r, "clock", ticks(0.0, 1.0, 50.0), ticks(2.0, 6.0, 50.0), ticks(9.0, 1.0, 50.0))
+    r.goal(1.0)  # 1 s silent during the scenario's setup and our judge's start,
+    r.ack(1.0, 2.0)  # before Nav2's answer,
+    r.end(7.99)  # and 1 s after the run's end
+    assert r.span() == (2.0, 7.99) and r.acks == [1.0]
+    assert starved(r) is None and summary(r)["timing.clock_max_gap_s"] == pytest.approx(0.02)
+    r.ack(0.1, 5.0)
+    r.goal(4.0)
+    assert r.span() == (2.0, 7.99), "a goal sent and answered again does not move the run's start"
+    r.answered_at = 1.5  # a stall Nav2's answer came in: its part after the answer counts
+    assert "/clock was silent for 0.50 s" in starved(r)
+    r.answered_at, r.ended_at = 2.0, 8.5  # ... as does the part before the run's end of one closed after it
+    assert "/clock was silent for 0.52 s" in starved(r)
+    r.answered_at = None  # never answered: from our goal
+    assert r.span() == (1.0, 8.5) and "/clock was silent for 1.00 s" in starved(r)
+    late = world(record(ticks(0.0, 10.0, 20.0)), "scan", ticks(5.0, 3.0, 10.0))
+    late.goal(0.0)
+    late.end(10.0)
+    assert starved(late) is None, "before the first scan and after the last: not up yet, or the run over"
+    early = world(record(), "clock", ticks(0.0, 1.0, 50.0))
+    early.goal(2.0)
+    assert "timing.clock_max_gap_s" not in summary(early) and starved(early) is None, "heard only before the run"
