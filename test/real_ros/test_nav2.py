@@ -66,10 +66,13 @@ def start_nav2(g, workspace: Path, env: dict, tmp_path: Path, config: Path, mcap
     for name, package, executable in launch_logic.NAV2_NODES:
         g.ros(name, f"ros2 run {package} {executable} --ros-args --params-file {scaled} -r __node:={name}",
               workspace, env)
+    # the world's silence rule off here, explicitly (it stays on in the product): the verdicts are this
+    # test's subject, no runner reruns a starved run here, and beside the suite's other worker our
+    # world and adapter can go 0.35 s without a /scan (docs/choices.md, "A starved stack is never a failure")
     g.ros("adapter", "ros2 run ambiegen_ros sut_adapter " + ros_args(
         problem="robot", profile="refined", config_file=config, worker_id="nav2", goal_mode="action",
         time_scale=TIME_SCALE, collision_topic="/collision", plan_topic="/plan", map_upsample=5, tick_period=0.02, settle_time=1.0, start_timeout=120.0,
-        min_result_subscribers=2), workspace, env)
+        min_result_subscribers=2, starved_world_gap_s=0.0), workspace, env)
 
 
 def test_nav2_drives_ten_maps_with_every_verdict_in_the_log(jazzy, workspace, graph, tmp_path, ros_domain,
@@ -270,6 +273,7 @@ def test_rerun_beside_nav2_with_our_world_and_recorder_on_the_dds_backend(jazzy,
     and Nav2's own result."""
     import json
 
+    from ambiegen_ros.trials.reruns import starved
     from ambiegen_ros.trials.rows import TrialLog
 
     require(jazzy, *BRINGUP)
@@ -281,7 +285,8 @@ def test_rerun_beside_nav2_with_our_world_and_recorder_on_the_dds_backend(jazzy,
                   f"--our-transport dds --repeat 1 --domain-id {ros_domain} --results {results} --bags {bags}",
                   workspace, ros_env(ros_domain), timeout=900)
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
-    rows = TrialLog(results).rows()
+    # a run the machine starved is an error record of its own, run again at once: left aside
+    rows = [r for r in TrialLog(results).rows() if not starved(r)]
     assert len(rows) == 2 and all(r["failure_kind"] not in ("error", "sim_timeout", "invalid_test") for r in rows), rows
     assert all(r.get("nav2_status") for r in rows), rows  # Nav2's own answer, through the rclpy adapter
     (logs,) = bags.glob("jazzy_*/logs")
