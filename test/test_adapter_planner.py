@@ -79,6 +79,21 @@ def test_a_refusal_where_a_path_exists_fails_with_the_certificate_and_a_proved_o
     assert proved.metrics["plan_oracle"] == "correct_refusal" and proved.metrics["reference"]["status"] == "absent"
 
 
+def test_a_path_leaving_a_blocked_start_is_as_close_as_its_judged_poses_came():
+    """The poses leaving a colliding start are not judged (start_blocked), so they are no closest call:
+    a path that starts 0.125 m from a wall's last cell centre came as close as its first judged pose,
+    the first one clear of the inscribed radius, not 0.125 m."""
+    occ = room("none")
+    occ[:, 0:2] = 100  # a wall along x = 0 .. 0.1 m
+    walled = costmap_from_occupancy(occ, RES)
+    start = (0.2, 1.0, 0.0)  # 0.125 m from the wall's last cell centre: inside the inscribed radius
+    path = np.vstack([line(start[:2], (0.7, 1.0), 11), line((0.7, 1.0), (2.5, 1.0), 40)[1:]])
+    out = plan_outcome(walled, rules.smac_2d(), start, (2.5, 1.0, 0.0), PlanAnswer(status=4, path=path))
+    assert out.verdict == "PASS", out.detail
+    assert "start_blocked" in out.detail or out.metrics["plan_oracle"] == "start_blocked"
+    assert 0.2158 < out.metrics["plan_clearance_m"] < 0.3  # the judged poses only (the start's: 0.125 m)
+
+
 def test_planning_over_the_plugins_own_limit_is_a_note_never_a_failure():
     clear = costmap_from_occupancy(room("none"), RES)
     slow = PlanAnswer(status=4, path=line(START[:2], GOAL[:2]), planning_time=3.5)

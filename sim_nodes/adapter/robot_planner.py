@@ -169,7 +169,8 @@ def plan_outcome(costmap: Costmap, rules: plan_rules.PlannerRules, start: tuple,
                            planning_time=answer.planning_time,
                            smoothed=answer.smoothed if not error else None)
     v = judgement.verdict
-    near = clearance(costmap, answer.path) if not error else math.inf
+    # a path that held is as close as its judged poses came: those leaving a colliding start are not judged
+    near = clearance(costmap, answer.path[judgement.judged_from:]) if not error else math.inf
     metrics: dict[str, Any] = {
         "plan_oracle": v.kind, "plan_failures": [f.kind for f in judgement.failures], "planner": rules.name,
         "plan_error_code": answer.error_code, "plan_error_msg": answer.error_msg,

@@ -101,6 +101,7 @@ class PlanJudgement:
 
     failures: list[PlanVerdict]
     notes: list[PlanVerdict]
+    judged_from: int = 0  # the first pose the path oracles judged: those leaving a colliding start are not
 
     @property
     def failed(self) -> bool:
@@ -450,6 +451,7 @@ def judge_plan(costmap: Costmap, rules: PlannerRules, start: Sequence[float], go
     """
     failures: list[PlanVerdict] = []
     notes: list[PlanVerdict] = []
+    skip = 0
 
     def add(v: Optional[PlanVerdict]) -> None:
         if v is not None:
@@ -460,17 +462,18 @@ def judge_plan(costmap: Costmap, rules: PlannerRules, start: Sequence[float], go
     elif error is not None or path is None:
         add(judge_failure(costmap, rules, start, goal, error or "no path"))
     else:
-        _judge_path(costmap, rules, start, goal, as_poses(path), failures, notes)
+        skip = _judge_path(costmap, rules, start, goal, as_poses(path), failures, notes)
         if smoothed is not None:
             add(check_smoother(costmap, as_poses(path), as_poses(smoothed), rules))
     if planning_time is not None:
         add(check_time(planning_time, rules))
-    return PlanJudgement(failures, notes)
+    return PlanJudgement(failures, notes, skip)
 
 
 def _judge_path(costmap: Costmap, rules: PlannerRules, start: Sequence[float], goal: Sequence[float],
-                poses: np.ndarray, failures: list[PlanVerdict], notes: list[PlanVerdict]) -> None:
-    """The path oracles, appending to ``failures`` and ``notes``."""
+                poses: np.ndarray, failures: list[PlanVerdict], notes: list[PlanVerdict]) -> int:
+    """The path oracles, appending to ``failures`` and ``notes``; returns how many poses leaving a
+    colliding start went unjudged."""
     if costmap.world_to_map(*goal[:2]) is None:
         notes.append(PlanVerdict("goal_outside_map", f"goal ({goal[0]:.3f}, {goal[1]:.3f}) is outside the map"))
     if costmap.world_to_map(*start[:2]) is None:
@@ -479,7 +482,7 @@ def _judge_path(costmap: Costmap, rules: PlannerRules, start: Sequence[float], g
     if ends is not None:
         failures.append(ends)
     if not len(poses):
-        return
+        return 0
     checker = CollisionChecker(costmap, rules)
     skip = leaving_start(checker, poses, start)
     if skip:
@@ -489,3 +492,4 @@ def _judge_path(costmap: Costmap, rules: PlannerRules, start: Sequence[float], g
               check_turning(poses, rules, resolution=costmap.resolution)):
         if v is not None:
             failures.append(v)
+    return skip
