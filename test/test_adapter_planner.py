@@ -390,6 +390,13 @@ def test_a_finding_is_written_as_nav2s_maintainers_ask_for_one(tmp_path):
     assert (tmp_path / "case_params.yaml").read_text() == params.read_text()
     assert _json.loads((tmp_path / "case_suite.json").read_text())["suite"][0]["scenario"] == row["scenario"]
     assert "MIN_RADIUS = None" in script  # Theta*: no turning limit to report
+    assert "SMOOTH = False" in script and "smoother_server" not in script.split('"""')[1]
+    smoothed = write_finding(rows, "case", problem, REPO / "config" / "nav2" / "planners" /
+                             "navfn_constrained_smoother.yaml", 5, tmp_path / "smooth", "new", "", "why")
+    script = (smoothed.parent / "case_reproduce.py").read_text()
+    compile(script, "case_reproduce.py", "exec")
+    assert "SMOOTH = True" in script and "ros2 run nav2_smoother smoother_server" in script
+    assert "node_names:=\"['planner_server', 'smoother_server']\"" in script
     hybrid = write_finding(rows, "case", problem, REPO / "config" / "nav2" / "planners" / "smac_hybrid.yaml", 5,
                            tmp_path / "hybrid", "known", "#4271", "why", min_turning_radius=0.4)
     script = (hybrid.parent / "case_reproduce.py").read_text()

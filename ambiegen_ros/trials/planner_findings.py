@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
+import yaml
 
 LABELS = {
     "new": "new: not on Nav2's tracker, not fixed on main",
@@ -64,13 +65,13 @@ def map_of(problem: Any, scenario: Any, upsample: int) -> tuple[np.ndarray, floa
 SCRIPT = '''#!/usr/bin/env python3
 """{title}: shown on a stock ROS 2 Jazzy with Nav2's planner_server alone.
 
-In four terminals (a sourced Jazzy in each):
+In a terminal each (a sourced Jazzy in each):
   ros2 run tf2_ros static_transform_publisher --frame-id map --child-frame-id base_link
-  ros2 run nav2_planner planner_server --ros-args --params-file {params}
-  ros2 run nav2_lifecycle_manager lifecycle_manager --ros-args -p node_names:="['planner_server']" -p autostart:=true
+  ros2 run nav2_planner planner_server --ros-args --params-file {params}{smoother_line}
+  ros2 run nav2_lifecycle_manager lifecycle_manager --ros-args -p node_names:="{node_names}" -p autostart:=true
   python3 {script}
 This script publishes the map ({map_yaml}, latched on /map, as map_server would), asks
-ComputePathToPose through nav2_simple_commander and checks the answer on the costmap Nav2 made.
+ComputePathToPose through nav2_simple_commander and checks the answer on the costmap Nav2 made{smooth_words}.
 If planner_server crashes, its own terminal says so, and this script waits for an answer that will
 not come: stop it with Ctrl-C.
 """
@@ -87,6 +88,7 @@ HERE = Path(__file__).resolve().parent
 START, GOAL = {start}, {goal}
 RESOLUTION, INSCRIBED = {resolution}, {inscribed}
 MIN_RADIUS = {min_radius}  # the planner's minimum turning radius (m); None: a 2D planner, no turning limit
+SMOOTH = {smooth}  # the path also goes to smoother_server's SmoothPath (check_for_collisions false), checked too
 
 
 def pose(nav, x, y, yaw):
@@ -144,12 +146,19 @@ def main():
         print(f"no path (error {{nav.result_future.result().result.error_code if nav.result_future else '?'}})")
         return
     size_x, size_y, costs = costmap.metadata.size_x, costmap.metadata.size_y, costmap.data
-    bad = []
-    for i, p in enumerate(path.poses):
-        mx, my = int(p.pose.position.x / RESOLUTION), int(p.pose.position.y / RESOLUTION)
-        if 0 <= mx < size_x and 0 <= my < size_y and costs[my * size_x + mx] >= 253:
-            bad.append((i, round(p.pose.position.x, 3), round(p.pose.position.y, 3), costs[my * size_x + mx]))
-    print(f"{{len(path.poses)}} poses; {{len(bad)}} in cells of cost >= 253 (inscribed or lethal): {{bad[:10]}}")
+
+    def check(what, poses):
+        bad = []
+        for i, p in enumerate(poses):
+            mx, my = int(p.pose.position.x / RESOLUTION), int(p.pose.position.y / RESOLUTION)
+            if 0 <= mx < size_x and 0 <= my < size_y and costs[my * size_x + mx] >= 253:
+                bad.append((i, round(p.pose.position.x, 3), round(p.pose.position.y, 3), costs[my * size_x + mx]))
+        print(f"{{what}}: {{len(poses)}} poses; {{len(bad)}} in cells of cost >= 253 (inscribed or lethal): {{bad[:10]}}")
+
+    check("path", path.poses)
+    if SMOOTH:
+        smoothed = nav.smoothPath(path, check_for_collision=False)
+        check("smoothed path", smoothed.poses) if smoothed is not None else print("no smoothed path")
     if MIN_RADIUS is not None:
         radius, i = tightest_turn([(p.pose.position.x, p.pose.position.y) for p in path.poses])
         print(f"tightest turn: radius {{radius:.3f}} m at pose {{i}}, against a minimum turning radius of "
@@ -173,6 +182,7 @@ def write_finding(rows: Sequence[dict], name: str, problem: Any, params_file: Pa
     runs = [r for r in rows if r.get("scenario_name") == name]
     if not runs:
         raise ValueError(f"no row of scenario {name!r}")
+    smooth = "smoother_server" in (yaml.safe_load(Path(params_file).read_text()) or {})
     if (out / f"{name}.md").exists():
         raise ValueError(f"{out / f'{name}.md'} exists: a report is never replaced (choose another -o)")
     out.mkdir(parents=True, exist_ok=True)
@@ -189,7 +199,12 @@ def write_finding(rows: Sequence[dict], name: str, problem: Any, params_file: Pa
     script.write_text(SCRIPT.format(title=name, params=params.name, script=script.name, map_yaml=f"{name}.yaml",
                                     pgm=f"{name}.pgm", start=tuple(round(v, 4) for v in start),
                                     goal=tuple(round(v, 4) for v in goal), resolution=res,
-                                    inscribed=round(inscribed, 4), min_radius=min_turning_radius))
+                                    inscribed=round(inscribed, 4), min_radius=min_turning_radius, smooth=smooth,
+                                    smoother_line=("\n  ros2 run nav2_smoother smoother_server --ros-args "
+                                                   f"--params-file {params.name}") if smooth else "",
+                                    node_names=str(["planner_server"] + ["smoother_server"] * smooth),
+                                    smooth_words=", then smooths the path with SmoothPath and checks that too"
+                                    if smooth else ""))
     kinds = Counter(r["failure_kind"] for r in runs)
     failed = sum(bool(r["failed"]) for r in runs)
     versions = first.get("versions") or {}
