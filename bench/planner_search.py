@@ -108,10 +108,25 @@ def run(args: argparse.Namespace) -> dict:
             "when": datetime.now(timezone.utc).isoformat(timespec="seconds"), **summarise(rows, args.minutes)}
 
 
+def survived(rows: list[dict]) -> None:
+    """Per plugin (config file), every run of any length together: what it was asked and what broke."""
+    print("## What each configuration survived (every run, any length)")
+    for plugin in sorted({r["plugin"] for r in rows}):
+        mine = [r for r in rows if r["plugin"] == plugin]
+        sent = sum(r["scenarios"] for r in mine)
+        invalid = sum(r["invalid_tests"] for r in mine)
+        keys: Counter = Counter()
+        for r in mine:
+            keys.update(r["distinct_keys"])
+        print(f"- {plugin}: {len(mine)} runs, {sent} scenarios ({invalid} invalid tests: refusals our reference "
+              f"proved right or could not judge), {sum(r['findings'] for r in mine)} failing; by key {dict(keys)}")
+
+
 def report() -> None:
     from ambiegen_ros.core.stats import greater_exact
 
     rows = [json.loads(line) for line in OUT.read_text().splitlines() if line.strip()] if OUT.exists() else []
+    survived(rows)
     for plugin, minutes in sorted({(r["plugin"], r["minutes"]) for r in rows}):
         # runs of one length only: a long survival run is no sample of what two minutes find
         side = {a: [r for r in rows if (r["plugin"], r["minutes"], r["algorithm"]) == (plugin, minutes, a)]
@@ -152,16 +167,18 @@ def draw_closest(keeps: list[str], out: Path) -> None:
         for path in sorted(Path(folder).glob("*.jsonl")):
             for line in path.read_text().splitlines():
                 row = json.loads(line)
-                near = clearance_of(row) if row["failure_kind"] == "none" else None
-                plugin = row.get("metrics", {}).get("planner", row["label"])
+                # a path from a blocked start is no clean call (before f93beed its unjudged poses counted)
+                blocked = row.get("metrics", {}).get("plan_oracle") == "start_blocked"
+                near = clearance_of(row) if row["failure_kind"] == "none" and not blocked else None
+                plugin = row["label"]  # the configuration: a plugin, or a plugin and its smoother
                 if near is not None and (plugin not in best or near < best[plugin][0]):
                     best[plugin] = (near, row, path.stem)
     out.mkdir(parents=True, exist_ok=True)
     for plugin, (near, row, run_name) in sorted(best.items()):
-        title = f"{plugin}: closest call, {near:.3f} m from a lethal cell's centre (run {run_name})"
+        title = f"{plugin}: closest call, {near:.3f} m from a lethal cell's centre"
         picture = save_runs_side_by_side(problem, problem.parse(row["scenario"]), [(title, [row])],
                                          out / f"{row['label']}_closest.png", title)
-        print(f"{plugin}: {near:.4f} m, {picture}")
+        print(f"{plugin}: {near:.4f} m (run {run_name}), {picture}")
 
 
 def main() -> int:
