@@ -12,6 +12,7 @@ import os
 import shutil
 import sys
 from pathlib import Path
+from typing import Any, Callable
 
 from .common import BadInput, add_config_option
 
@@ -219,6 +220,21 @@ def _overlay(args) -> str | None:
     return str(overlay)
 
 
+def _guarded(command: str, results: Path, resumes: str, work: Callable[[], Any]) -> tuple[Any, int]:
+    """(what ``work`` returned, 0); a stack that stopped is (None, 1) and an interrupt (None, 130),
+    each said in one line: the runs made so far are in ``results`` either way."""
+    from ..trials.runner import StackStopped
+
+    try:
+        return work(), 0
+    except StackStopped as exc:
+        print(f"ambiegen {command}: stopped: {exc}", file=sys.stderr)
+        return None, 1
+    except KeyboardInterrupt:
+        print(f"ambiegen {command}: interrupted; the runs made are in {results}{resumes}", file=sys.stderr)
+        return None, 130
+
+
 def _need_ros(stack: str) -> None:
     if importlib.util.find_spec("rclpy") is None:
         raise BadInput(f"--stack {stack}: a Nav2 stack needs ROS 2 (rclpy): source /opt/ros/jazzy/setup.bash and "
@@ -230,7 +246,7 @@ def _need_ros(stack: str) -> None:
 def cmd_trials(args) -> int:
     from ..trials import report
     from ..trials.configs import NAV2_STACKS, StackConfig, parse_config, prepare
-    from ..trials.runner import StackStopped, run_trials, utc_stamp
+    from ..trials.runner import run_trials, utc_stamp
     from ..trials.suite import load_suite
 
     if args.repeat < 1:
@@ -267,15 +283,8 @@ def cmd_trials(args) -> int:
         overlay = _overlay(args) if args.stack in NAV2_STACKS else None
         settings.bags.mkdir(parents=True, exist_ok=True)
         prepared = [prepare(c, args.stack, overlay, args.time_scale, settings.bags, settings.robot) for c in configs]
-        try:
-            run_trials(suite, prepared, settings)
-        except StackStopped as exc:
-            print(f"ambiegen {args.command}: stopped: {exc}", file=sys.stderr)
-            code = 1
-        except KeyboardInterrupt:
-            print(f"ambiegen {args.command}: interrupted; the runs made are in {results} (the same command resumes)",
-                  file=sys.stderr)
-            code = 130
+        _, code = _guarded(args.command, results, " (the same command resumes)",
+                           lambda: run_trials(suite, prepared, settings))
     md, _ = report.report(suite, results, labels)
     print("\n".join(md))
     out = args.out or str(results.parent / f"{results.stem}_reports")
@@ -295,7 +304,7 @@ def cmd_search(args) -> int:
     from ..trials import report
     from ..trials.configs import NAV2_STACKS, StackConfig, parse_config, prepare
     from ..trials.rows import TrialLog
-    from ..trials.runner import StackStopped, utc_stamp
+    from ..trials.runner import utc_stamp
     from ..trials.search import run_search
     from ..trials.suite import Entry, Suite
 
@@ -338,16 +347,8 @@ def cmd_search(args) -> int:
                                  indent=1, default=str) + "\n")
     print(f"search: {args.algorithm} ({args.mode}), seed {args.seed}, {args.hours:g} h of the stack at time scale "
           f"{args.time_scale:g}; rows to {results}, its settings to {record}")
-    code = 0
-    try:
-        run_search(problem, Search(problem, search_settings, valid_samples=True), suite, prepared, settings,
-                   in_the_loop=loop)
-    except StackStopped as exc:
-        print(f"ambiegen stack-search: stopped: {exc}", file=sys.stderr)
-        code = 1
-    except KeyboardInterrupt:
-        print(f"ambiegen stack-search: interrupted; the runs made are in {results}", file=sys.stderr)
-        code = 130
+    _, code = _guarded("stack-search", results, "", lambda: run_search(
+        problem, Search(problem, search_settings, valid_samples=True), suite, prepared, settings, in_the_loop=loop))
     if not results.exists():
         return code or 1
     ran = {row["key"]: row for row in TrialLog(results).rows()}
@@ -366,7 +367,7 @@ def cmd_search(args) -> int:
 def cmd_shrink(args) -> int:
     from ..trials import report
     from ..trials.configs import NAV2_STACKS, StackConfig, parse_config, prepare
-    from ..trials.runner import StackStopped, utc_stamp
+    from ..trials.runner import utc_stamp
     from ..trials.shrink import run_shrink
     from ..trials.suite import Entry, Suite, load_suite, problem_of, scenario_key
 
@@ -399,16 +400,8 @@ def cmd_shrink(args) -> int:
     prepared = prepare(config, args.stack, _overlay(args) if args.stack in NAV2_STACKS else None, args.time_scale,
                        settings.bags, settings.robot)
     print(f"shrink: {entry.name} on {args.stack}, up to {args.tries} run(s) a try; rows to {results}")
-    code = 0
-    feed = None
-    try:
-        feed = run_shrink(problem_of(suite), entry, suite, prepared, settings, args.tries)
-    except StackStopped as exc:
-        print(f"ambiegen shrink: stopped: {exc}", file=sys.stderr)
-        code = 1
-    except KeyboardInterrupt:
-        print(f"ambiegen shrink: interrupted; the tries made are in {results}", file=sys.stderr)
-        code = 130
+    feed, code = _guarded("shrink", results, "", lambda: run_shrink(problem_of(suite), entry, suite, prepared,
+                                                                      settings, args.tries))
     if feed is None or feed.minimal is None or feed.step != "done":
         return code or 1
     minimal_file.parent.mkdir(parents=True, exist_ok=True)

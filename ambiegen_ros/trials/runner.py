@@ -143,6 +143,16 @@ class Feed:
         pass
 
 
+def run_feed(suite: Suite, prepared: Prepared, settings: TrialSettings, feed: "Feed",
+             say: Callable[[str], None] = print) -> int:
+    """Run what ``feed`` gives on one supervised stack until it gives nothing or ``settings.budget_s``
+    is spent; rows go to ``settings.results``. Returns the runs made."""
+    log = TrialLog(settings.results)
+    log.check_label(prepared.config.label, prepared.digest)
+    clock = {"count": 0, "start": time.monotonic(), "total": 0}
+    return _run_configuration(suite, prepared, [], settings, log, Injector(settings.faults, say), clock, say, feed)
+
+
 class _Ran(NamedTuple):
     """One run as filed, and what followed it."""
 
@@ -240,4 +250,4 @@ def crash_again(first: str, outcome: Any) -> str:
     return "it came back"
 
 
-__all__ = ["StackStopped", "TrialSettings", "row_of", "run_trials", "utc_stamp"]
+__all__ = ["Feed", "StackStopped", "TrialSettings", "row_of", "run_feed", "run_trials", "utc_stamp"]

@@ -11,15 +11,12 @@ it); what the problem calls invalid is never run (the generator's rule), and tol
 """
 from __future__ import annotations
 
-import time
 from typing import Any, Callable
 
 from ..nodes.generator import loop_evaluation
 from ..sims.outcome import Outcome
 from .configs import Prepared
-from .faults import Injector
-from .rows import TrialLog
-from .runner import Feed, TrialSettings, _run_configuration
+from .runner import Feed, TrialSettings, run_feed
 from .suite import Entry, Suite, scenario_key
 
 
@@ -87,11 +84,8 @@ def run_search(problem: Any, search: Any, suite: Suite, prepared: Prepared, sett
                say: Callable[[str], None] = print, in_the_loop: bool = True) -> SearchFeed:
     """Run the search on one supervised stack until it ends or ``settings.budget_s`` (wall seconds of
     sending) is spent; rows go to ``settings.results``. Returns the feed (its entries: what ran)."""
-    log = TrialLog(settings.results)
-    log.check_label(prepared.config.label, prepared.digest)
     feed = SearchFeed(problem, search, suite.problem_config, say, in_the_loop)
-    clock = {"count": 0, "start": time.monotonic(), "total": 0}
-    _run_configuration(suite, prepared, [], settings, log, Injector(settings.faults, say), clock, say, feed)
+    run_feed(suite, prepared, settings, feed, say)
     return feed
 
 

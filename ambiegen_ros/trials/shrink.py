@@ -17,14 +17,11 @@ changes: the cells taken away are listed in its metadata (``problems.robot.probl
 """
 from __future__ import annotations
 
-import time
 from typing import Any, Callable
 
 from ..core.shrink import Ddmin
 from .configs import Prepared
-from .faults import Injector
-from .rows import TrialLog
-from .runner import Feed, TrialSettings, _run_configuration
+from .runner import Feed, TrialSettings, run_feed
 from .suite import Entry, Suite, scenario_key
 
 
@@ -145,11 +142,8 @@ def run_shrink(problem: Any, entry: Entry, suite: Suite, prepared: Prepared, set
                say: Callable[[str], None] = print) -> ShrinkFeed:
     """Shrink ``entry`` on one supervised stack; every try is a row of ``settings.results``. Returns
     the feed: ``minimal`` (None when the scenario did not fail), ``signature``, ``history``."""
-    log = TrialLog(settings.results)
-    log.check_label(prepared.config.label, prepared.digest)
     feed = ShrinkFeed(problem, entry, suite.problem_config, tries, say)
-    clock = {"count": 0, "start": time.monotonic(), "total": 0}
-    _run_configuration(suite, prepared, [], settings, log, Injector(settings.faults, say), clock, say, feed)
+    run_feed(suite, prepared, settings, feed, say)
     return feed
 
 
