@@ -448,3 +448,27 @@ def test_a_command_line_gives_every_node_its_parameters_with_their_planned_types
             assert read == value and type(read) is type(value), (node.name, name, given[name])
             checked += 1
     assert checked > 50
+
+
+def test_a_fault_waits_for_this_runs_robot_to_move_not_the_last_runs():
+    """Injected faults fire once the run's robot moves: odometry over 5 cm/s near the run's start. The
+    last run's robot, still driving to its goal when its odometry comes in late, does not count (on a
+    loaded machine that fired the fault before the adapter's goal went out: an error, not a crash)."""
+    from types import SimpleNamespace
+
+    from ambiegen_ros.trials.session import StackSession
+
+    def odom(x, y, speed):
+        return SimpleNamespace(pose=SimpleNamespace(pose=SimpleNamespace(position=SimpleNamespace(x=x, y=y))),
+                               twist=SimpleNamespace(twist=SimpleNamespace(linear=SimpleNamespace(x=speed))))
+
+    session = SimpleNamespace(in_flight=True, moved_at=None, run_start=(1.5, 1.5))
+    StackSession._on_odom(session, odom(9.0, 9.0, 0.4))  # the last run's robot, far from this start
+    assert session.moved_at is None
+    StackSession._on_odom(session, odom(1.6, 1.5, 0.01))  # here, but standing
+    assert session.moved_at is None
+    StackSession._on_odom(session, odom(1.6, 1.5, 0.3))
+    assert session.moved_at is not None
+    anywhere = SimpleNamespace(in_flight=True, moved_at=None, run_start=None)  # no start known: any motion
+    StackSession._on_odom(anywhere, odom(9.0, 9.0, 0.3))
+    assert anywhere.moved_at is not None

@@ -59,8 +59,12 @@ def test_an_error_of_ours_that_a_restart_does_not_explain_counts_in_the_streak()
     assert unexplained.errors == 1 and unexplained.again == {} and not unexplained.count
     lost = POLICY.after(row("sim_timeout", "the runner got no result in 300 s"), [], [], {}, errors=1)
     assert lost.errors == 2 and lost.again is None and lost.stop is None
-    stack_died = POLICY.after(row("error", "y"), [death("stack")], [], {}, errors=0)
-    assert stack_died.errors == 1 and stack_died.again is None, "only a death of ours is run again"
+    assert lost.tell, "no rerun follows: the search is told the error rather than left waiting"
+    # the stack died before the run began (the adapter's error, no verdict): again, on the restarted stack,
+    # in the streak (a stack that dies before every run stops the configuration at max_errors)
+    stack_died = POLICY.after(row("error", "nd_driver killed by SIGKILL (before the run began): run it again"),
+                              [death("stack")], RESTARTED, {}, errors=0)
+    assert stack_died.errors == 1 and stack_died.again == {} and not stack_died.tell
 
 
 def test_errors_in_a_row_stop_the_configuration_at_max_errors_naming_the_last_and_the_logs():

@@ -1,8 +1,10 @@
 """Faults injected on purpose, to see a session survive them: ``--inject TARGET:SIGNAL@RUN[+S][/HOLD]``.
 
 ``nd_driver:SIGKILL@2`` kills ``nd_driver`` when the second run of this invocation has its robot
-moving (the first odometry faster than 5 cm/s after the scenario went out); ``+S`` waits S seconds
-more; ``controller_server:SIGSTOP@3/30`` stops Nav2's controller for 30 s, then continues it. The
+moving (the first odometry faster than 5 cm/s, within 1 m of the run's start, after the scenario
+went out: the last run's robot, still driving when a loaded machine delivers its odometry late, is
+not this run's); ``+S`` waits S seconds more; ``controller_server:SIGSTOP@3/30`` stops Nav2's
+controller for 30 s, then continues it. The
 target is a process of the session (``robot_world``, ``sut_adapter``, ``recorder``, ``nd_driver``,
 ``nav2``: the launch) or a node below one (a Nav2 server, by its node name). Faults fire on the run's
 events, never at a wall-clock time, so a test sees the same fault on a fast or a slow machine; the

@@ -11,6 +11,10 @@ with (``Reruns.after``):
 * an error during which a part of ours died runs again, first, with the same ``extra``, once the
   part is back; it is no error in a row when every restart of ours came back (a dead part is not
   the kind of error that repeats);
+* an error during which a part of the stack died (before the run began, as the adapter says: the
+  run had no verdict) runs again too, on the restarted stack, and counts in the streak;
+* an error that runs no more is told to the search as an error (a search must not wait for a
+  verdict that will not come: its batch would end it);
 * a starved run (an error record whose ``metrics.error_kind`` is ``starved``: the stack did not get
   its computer, ``ambiegen_ros.sims.timing``) runs again, first, with the same ``extra``: it is no
   verdict, whatever Nav2 answered. It counts in the streak all the same: a machine that starves the
@@ -68,7 +72,7 @@ class Reruns:
         if row.get("failure_kind") == "sut_crashed" and not rerun:  # once more on the fresh stack
             again = {"crash_rerun_of": {"run_id": row.get("run_id"), "scenario_id": row.get("scenario_id"),
                                         "detail": row.get("detail")}}
-        elif not step.count and (ours or starved(row)):  # the same run again (on the part restarted)
+        elif not step.count and (deaths or starved(row)):  # the same run again (on the parts restarted)
             again = dict(extra)
         stop = None
         if step.errors >= self.max_errors and starved(row):
@@ -79,7 +83,8 @@ class Reruns:
         elif step.errors >= self.max_errors:
             stop = (f"[{self.label}] {step.errors} errors in a row, the last: {str(row.get('detail') or '')[:200]} "
                     f"(logs: {self.logs}); rerun the same command to resume")
-        return Step(step.count, step.tell, step.errors, again, stop)
+        told = step.tell or (not step.count and again is None and not rerun)  # an error with no run to follow
+        return Step(step.count, told, step.errors, again, stop)
 
 
 __all__ = ["Reruns", "STARVED", "Step", "starved"]

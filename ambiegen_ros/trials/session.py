@@ -36,6 +36,8 @@ STOP_SIGNALS = (signal.SIGSTOP, signal.SIGTSTP, signal.SIGCONT)  # a hang, not a
 
 RESULT_SLACK_S = 60.0  # beyond the adapter's own guard, before the runner calls a scenario lost
 MOVING_MPS = 0.05  # a run's robot moves once its odometry says this fast (injected faults wait for it)
+NEAR_START_M = 1.0  # ... and puts it this near the run's start: the last run's robot, still driving to its
+# goal when the next scenario goes out (a late odometry on a loaded machine), is not this run's
 DISCOVERY_S = 2.0  # a new participant has heard the others on the domain by then (SPDP on one host)
 GONE_TIMEOUT_S = 60.0  # a killed part's endpoints leave the graph within its lease (DDS: about 10 s)
 # a stack's signs of life on the graph (``_hangs``): its commands, its navigator's feedback and goal states
@@ -307,6 +309,7 @@ class StackSession:
         self.sid = 0
         self.in_flight = False
         self.moved_at: float | None = None
+        self.run_start: tuple[float, float] | None = None  # the run's start (m), where its robot moves from
         self.run_no = 0
         self.deaths: list[Death] = []  # of the run in flight
         self.signalled: list = []  # faults injected during the run in flight (their deaths belong to it)
@@ -318,7 +321,9 @@ class StackSession:
     # --- watching -------------------------------------------------------------------------------
     def _on_odom(self, msg: Any) -> None:
         if self.in_flight and self.moved_at is None and abs(float(msg.twist.twist.linear.x)) > MOVING_MPS:
-            self.moved_at = time.monotonic()
+            at = msg.pose.pose.position
+            if self.run_start is None or math.dist((float(at.x), float(at.y)), self.run_start) <= NEAR_START_M:
+                self.moved_at = time.monotonic()
 
     def _on_sign(self, _data: Any, _receive_ns: int = 0) -> None:
         self.alive_at = time.monotonic()
@@ -461,6 +466,14 @@ class StackSession:
         if not self.node.ok():
             raise KeyboardInterrupt
 
+    def _start_of(self, scenario: Any) -> tuple[float, float] | None:
+        """The robot's start (m) in a robot scenario, for the faults' trigger (None: no such start)."""
+        try:
+            start = self.problem.environment(scenario).start_m
+        except (AttributeError, ValueError):
+            return None
+        return (float(start[0]), float(start[1])) if start is not None else None
+
     def _adapter_gone(self) -> bool:
         return any(d.process == "sut_adapter" for d in self.deaths)
 
@@ -471,6 +484,7 @@ class StackSession:
         sid, self.sid = self.sid, self.sid + 1
         scenario = self.problem.parse(entry.scenario)
         self.run_no, self.deaths, self.moved_at, self.hung_said = run_no, [], None, False
+        self.run_start = self._start_of(scenario) if self.injector.faults else None
         self.signalled = []
         t0, w0 = time.monotonic(), time.time_ns()
         self.sent_at = t0
