@@ -388,8 +388,8 @@ def cmd_shrink(args) -> int:
     chosen = [e for e in suite.entries if args.scenario is None or e.name == args.scenario]
     if len(chosen) != 1:
         names = ", ".join(e.name for e in suite.entries[:8]) + (" ..." if len(suite.entries) > 8 else "")
-        raise BadInput(f"--scenario: {'no scenario called ' + repr(args.scenario) if args.scenario and not chosen else 'name one of'} "
-                       f"the suite's {len(suite.entries)} ({names})")
+        which = f"no scenario called {args.scenario!r} in" if args.scenario else "name one of"
+        raise BadInput(f"--scenario: {which} the suite's {len(suite.entries)} ({names})")
     entry = chosen[0]
     config = parse_config(args.params[0]) if args.params else StackConfig("nd", ())
     settings = _settings(args, results)

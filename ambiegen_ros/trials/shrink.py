@@ -20,6 +20,7 @@ from __future__ import annotations
 from typing import Any, Callable
 
 from ..core.shrink import Ddmin
+from ..problems.robot.problem import CLEARED, cleared_cells
 from .configs import Prepared
 from .runner import Feed, TrialSettings, run_feed
 from .suite import Entry, Suite, scenario_key
@@ -37,14 +38,11 @@ class ShrinkFeed(Feed):
     smaller map); ``minimal`` is the smallest failing scenario (dict) once ``done``."""
 
     def __init__(self, problem: Any, entry: Entry, problem_config: dict, tries: int, say: Callable[[str], None]):
-        from ..problems.robot.problem import CLEARED, cleared_cells
-
         self.problem, self.entry, self.problem_config, self.tries, self.say = problem, entry, problem_config, tries, say
         scenario = problem.parse(entry.scenario)
         self.parts = problem.map_parts(scenario)
         before = cleared_cells(scenario.metadata, problem.config.map_size)
         self.already = {tuple(c) for c in (before.tolist() if before is not None else [])}
-        self.cleared_key = CLEARED
         self.occupied = {tuple(c) for _, cells in self.parts for c in cells.tolist()}
         self.signature: tuple[str, str] | None = None
         self.minimal: dict | None = None
@@ -65,7 +63,7 @@ class ShrinkFeed(Feed):
         if not self.occupied - cells:
             return self.entry.scenario  # nothing taken away: the scenario as given (and as it ran)
         cleared = sorted((self.occupied - cells) | self.already)
-        metadata = {**(self.entry.scenario.get("metadata") or {}), self.cleared_key: [list(c) for c in cleared]}
+        metadata = {**(self.entry.scenario.get("metadata") or {}), CLEARED: [list(c) for c in cleared]}
         return {**self.entry.scenario, "metadata": metadata}
 
     def _try(self, scenario: dict) -> list[Entry]:
