@@ -215,10 +215,20 @@ def _controller_limits(section: dict, plugin: str, profile: Any) -> None:
         section["max_angular_accel"] = az
 
 
+def _scan_source(source: dict, laser: Any) -> dict:
+    """A costmap's scan source seen from ``laser``: its frame, and ranges no farther than it reaches."""
+    source["sensor_frame"] = laser.frame
+    for key in ("obstacle_max_range", "raytrace_max_range"):
+        if isinstance(source.get(key), (int, float)):
+            source[key] = min(source[key], laser.range)
+    return source
+
+
 def with_robot(params: dict, profile: Any) -> dict:
     """The params with the robot's footprint (or ``robot_radius``), laser and limits in place of
     the Pioneer's the overlay wrote: each costmap's body and scan sources (``sensor_frame``, ranges
-    no farther than the laser's), each controller's speed caps (never raised) and accelerations,
+    no farther than the laser's; a profile's further lasers each as a source like the first, named
+    after its topic), each controller's speed caps (never raised) and accelerations,
     the velocity smoother's, and an Ackermann robot's turning radius in MPPI and Smac's planners."""
     out = copy.deepcopy(params)
     laser = profile.lasers[0]
@@ -234,10 +244,12 @@ def with_robot(params: dict, profile: Any) -> dict:
         for layer in costmap.values():
             source = layer.get("scan") if isinstance(layer, dict) else None
             if isinstance(source, dict):
-                source["sensor_frame"] = laser.frame
-                for key in ("obstacle_max_range", "raytrace_max_range"):
-                    if isinstance(source.get(key), (int, float)):
-                        source[key] = min(source[key], laser.range)
+                _scan_source(source, laser)
+                for other in profile.lasers[1:]:  # each further laser: a source of its own, set as the first
+                    name = other.topic.strip("/").replace("/", "_")
+                    layer[name] = _scan_source({**copy.deepcopy(source), "topic": other.topic}, other)
+                    sources = str(layer.get("observation_sources", "scan")).split()
+                    layer["observation_sources"] = " ".join(sources + [name] * (name not in sources))
     from .sims.robot_profile import controllers
 
     for name, plugin, section in controllers(out):

@@ -10,7 +10,8 @@ Each run is one ``nav2_campaign.launch.py`` campaign on the maps of ``config/rob
 ``--controller dwb`` = our five Nav2 nodes with ``config/nav2/pioneer_navfn_dwb.yaml`` at time scale
 2, ``mppi`` = Jazzy's ``nav2_params.yaml`` + the overlay through ``navigation_launch.py`` at real
 time (the largest time scales that keep real time's verdicts on this 2-core machine), ``hardened`` =
-``mppi`` with ``fix:hardened`` (issue 59: the map's walls in the local costmap, the patient tree). The campaign
+``mppi`` with ``fix:hardened`` (issue 59: the map's walls in the local costmap, the patient tree);
+``--robot`` drives another robot profile than Stage's Pioneer (issue 69). The campaign
 stops sending maps after ``--nav2-hours`` of simulated time (its ``execution_budget`` in wall
 seconds, at the time scale); the map in flight then finishes. From its bag: Nav2 runs, their simulated time, failures, known failures (not counted), the
 distinct new certified failures (the campaign gallery's count: every failure has a clearance route,
@@ -44,6 +45,7 @@ from _common import append_row, nav2_loop_misses, read_rows  # noqa: E402
 OUT = REPO / "bench" / "results" / "nav2_search.jsonl"
 DEFAULT_CONFIG = "config/robot_small.yaml"
 MIN_RUNS = 3  # runs a side before a test is printed (issue 29's minimum)
+PIONEER = "pioneer2dx"  # the robot of every row from before profiles (robot_profile '')
 CLAIM_RUNS = 10  # runs a side before it is a claim: "beats random" is about a distribution
 JAZZY_PARAMS = "{jazzy}/share/nav2_bringup/params/nav2_params.yaml"
 CONTROLLERS = {  # controller: (launch arguments, time scale)
@@ -78,7 +80,7 @@ def run_one(args, install: Path, logs: Path) -> dict:
         algorithm=args.algorithm, mode=args.mode, seed=args.seed, execution_budget=budget,
         evaluations=100000 if args.mode == "in_the_loop" else args.evaluations,
         output_dir=out_dir, time_scale=k, config_file=REPO / args.config, profile="refined",
-        **extra).items())
+        **({"robot_profile": args.robot} if args.robot else {}), **extra).items())
     graph = je.Graph(out_dir)
     t0 = time.monotonic()
     graph.ros("launch", launch, install, je.ros_env(args.domain_id))
@@ -109,7 +111,7 @@ def measure(args, mcap: Path, code, wall: float | None) -> dict:
     early = Counter(str(o.metrics.get("early_verdict")) for o in driven)
     return {
         "controller": args.controller, "algorithm": args.algorithm, "mode": args.mode, "config": args.config,
-        "seed": args.seed,
+        "seed": args.seed, "robot": args.robot or PIONEER,
         "time_scale": CONTROLLERS[args.controller][1], "exit": code, "wall_s": None if wall is None else round(wall, 1), "maps": len(rec.outcomes), "nav2_runs": len(driven),
         "nav2_hours": round(sum(float(o.metrics.get("time") or 0.0) for o in driven) / 3600.0, 3),
         "failures": sum(o.failed for o in driven), "known_failures": gallery["known_failures"],
@@ -147,11 +149,12 @@ def report(path: Path | None = None) -> int:
     from ambiegen_ros.core.stats import greater_exact
 
     rows = read_rows(path or OUT)
-    for controller, space in sorted({(r["controller"], scenario_space(r.get("config", DEFAULT_CONFIG)))
-                                     for r in rows}):
-        mine = [r for r in rows if r["controller"] == controller
-                and scenario_space(r.get("config", DEFAULT_CONFIG)) == space]
-        print(f"## {controller}, {space} scenarios")
+    def side(r: dict) -> tuple[str, str, str]:
+        return r["controller"], r.get("robot", PIONEER), scenario_space(r.get("config", DEFAULT_CONFIG))
+
+    for controller, robot, space in sorted({side(r) for r in rows}):
+        mine = [r for r in rows if side(r) == (controller, robot, space)]
+        print(f"## {controller}, {robot}, {space} scenarios")
         by = {}
         for r in mine:
             by.setdefault((r["algorithm"], f'{r["mode"]}, {r.get("config", DEFAULT_CONFIG)}'), []).append(r)
@@ -191,6 +194,9 @@ def main(argv: list[str] | None = None) -> int:
                          "scored by each Nav2 run's pace, seconds per metre of its clearance route)")
     ap.add_argument("--evaluations", type=int, default=0,
                     help="surrogate mode: the search's surrogate evaluations (0 = the config's); Nav2 then runs its suite")
+    ap.add_argument("--robot", default="",
+                    help="the robot profile the world drives and the adapter judges, its body and limits written "
+                         "into the params (issue 69: turtlebot4, ackermann_car, a file; '' = Stage's pioneer2dx)")
     ap.add_argument("--nav2-hours", type=float, default=1.0, help="simulated hours of Nav2 per run")
     ap.add_argument("--grace", type=float, default=1800.0,
                     help="wall seconds past the budget for the map in flight (one per stack) to finish; "
@@ -227,7 +233,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def append(row: dict, path: Path | None = None) -> int:
     append_row(path or OUT, row)
-    print(json.dumps({key: row[key] for key in ("controller", "algorithm", "mode", "seed", "exit", "wall_s", "nav2_runs",
+    print(json.dumps({key: row[key] for key in ("controller", "robot", "algorithm", "mode", "seed", "exit", "wall_s", "nav2_runs",
                                                 "nav2_hours", "failures", "known_failures", "distinct_new_failures",
                                                 "kinds", "early_verdicts", "near_misses")}), flush=True)
     return 0

@@ -31,8 +31,9 @@ a profile file; '' is Stage's Pioneer, as before. A profile sets the body, the d
 omnidirectional base takes ``linear.y``; an Ackermann one cannot turn in place), the limits and the
 lasers, over the ``sim.*`` values: each laser is cast from its mount pose and published in its frame
 (``tf_static`` through the profile's frames), the first on ``scan_topic``, any other on its
-profile topic, all at the first laser's ``rate`` rounded to a whole number of steps (``scan_rate``
-is then ignored).
+profile topic, each at its own ``rate`` rounded to a whole number of steps (``scan_rate`` is then
+ignored; the first laser's scan paces the markers, the collision report and lockstep). ``/odom``
+carries an omnidirectional base's sideways speed in ``twist.linear.y``.
 
 Time: ``sim.dt`` (default 0.02 s, so odometry and TF come at 50 Hz) per step; the world runs
 ``time_scale`` times faster than the wall clock (0 = as fast as it can). With ``lockstep:=true``
@@ -57,7 +58,7 @@ from ambiegen_ros.ros import conversions, state_cdr
 from ambiegen_ros.ros.qos import DEFAULT, LATCHED, Qos
 from ambiegen_ros.ros.transport import create_node
 from ambiegen_ros.ros import topics
-from ambiegen_ros.sims.hosted_world import HostedWorld
+from ambiegen_ros.sims.hosted_world import HostedWorld, laser_steps
 from ambiegen_ros.sims.obstacles import Obstacles
 from ambiegen_ros.sims.robot import WORLD_FIELDS, RobotSimConfig
 from ambiegen_ros.nodes import run_node
@@ -114,7 +115,7 @@ class RobotWorldNode:
         profile = self.profile = _profile(p("robot_profile", "", "the robot: a shipped profile's name (turtlebot4, "
                                                               "...) or a profile file; '' = Stage's pioneer2dx"))
         if profile is not None and cfg.dt > 0:
-            scan_rate = 1.0 / (max(1, round(1.0 / (profile.lasers[0].rate * cfg.dt))) * cfg.dt)
+            scan_rate = 1.0 / (laser_steps(profile.lasers[0].rate, cfg.dt) * cfg.dt)
         for name, value in (("time_scale", self.time_scale), ("cmd_timeout", cmd_timeout)):
             if not value >= 0:
                 raise ConfigError(f"{name}: must be >= 0")
@@ -218,7 +219,7 @@ class RobotWorldNode:
         self.world.load_map(grid, float(info.resolution), (float(info.origin.position.x), float(info.origin.position.y)),
                             self._obstacles_for(conversions.stamp_ns(msg.header)))
         self.node.logger.info(f"map {info.width}x{info.height} at {info.resolution:g} m: world reset (run {self.world.runs})")
-        self._publish_state(scan=True)
+        self._publish_state()
 
     def on_initialpose(self, msg: Any) -> None:
         pose = msg.pose.pose
@@ -231,7 +232,7 @@ class RobotWorldNode:
         self.world.teleport(float(x), float(y), yaw)
         self.node.logger.info(f"teleported to ({x:.2f}, {y:.2f}, {math.degrees(yaw):.0f} deg)")
         if self.world.ready:
-            self._publish_state(scan=True)
+            self._publish_state()
 
     def _start_paired(self) -> None:
         """The scenario's map and start pose, stamped alike, in either order: one reset, one start
@@ -249,7 +250,7 @@ class RobotWorldNode:
         self.world.load_map(m[1], m[2], m[3], obstacles)
         self.node.logger.info(f"map {m[1].shape[1]}x{m[1].shape[0]} at {m[2]:g} m with the start ({q[1]:.2f}, {q[2]:.2f}, "
                               f"{math.degrees(q[3]):.0f} deg): world reset (run {self.world.runs})")
-        self._publish_state(scan=True)
+        self._publish_state()
 
     def on_cmd_vel(self, msg: Any) -> None:
         w = self.world
@@ -305,31 +306,35 @@ class RobotWorldNode:
             if not w.can_step:
                 return
             w.step()
-            self._publish_state(scan=w.scan_due)  # before any map too: a stack waits for TF to activate
+            self._publish_state()  # before any map too: a stack waits for TF to activate
             if w.lockstep and w.awaiting:
                 return
 
     def _stamp(self) -> int:
         return self.start_ns + int(round(self.world.k * self.cfg.dt * 1e9))
 
-    def _publish_state(self, scan: bool) -> None:
+    def _publish_state(self) -> None:
         """Odometry and TF every step, written straight to CDR (``state_cdr``: the bytes the message
-        objects would give, at a thirtieth of the CPU); the scan and the rest as messages."""
+        objects would give, at a thirtieth of the CPU); each laser's scan when it is due and the rest
+        as messages."""
         w, make, f = self.world, self._make, self.frames
         stamp = self._stamp()
         x, y, yaw = w.pose
         v, turn = w.twist
-        self.last_odom_cdr = state_cdr.odometry(stamp, x, y, yaw, v, turn, f["odom"], f["base"])
+        self.last_odom_cdr = state_cdr.odometry(stamp, x, y, yaw, v, turn, f["odom"], f["base"], w.sideways)
         self.pub_odom.publish_raw(self.last_odom_cdr)
         self.pub_tf.publish_raw(state_cdr.tf_message(stamp, [(f["map"], f["odom"], 0.0, 0.0, 0.0),
                                                             (f["odom"], f["base"], x, y, yaw)]))
-        if scan and w.ready:
-            for (frame, angles, max_range, pub), ranges in zip(self.lasers, w.scans()):
-                msg = conversions.laser_scan(make, stamp, frame, angles[0], angles[-1], ranges, max_range,
-                                             self.scan_period)
-                pub.publish(msg)
-                if pub is self.pub_scan:
-                    self.last_scan_msg = msg
+        scans = w.scans(w.due_lasers) if w.ready else {}
+        for laser, ranges in scans.items():
+            frame, angles, max_range, pub = self.lasers[laser]
+            msg = conversions.laser_scan(make, stamp, frame, angles[0], angles[-1], ranges, max_range,
+                                         w.laser_period(laser))
+            pub.publish(msg)
+            if laser == 0:
+                self.last_scan_msg = msg
+        scan = 0 in scans  # the first laser's scan paces the markers, the collision report and lockstep
+        if scan:
             self.last_scan_wall, self.scan_stamp = time.monotonic(), stamp
         if scan and w.ready and self.pub_markers is not None and w.world.obstacles is not None \
                 and self._markers_due():

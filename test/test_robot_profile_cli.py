@@ -65,6 +65,30 @@ def test_a_smaller_robots_caps_lower_the_controller_and_never_raise_it(tmp_path)
     assert scan["raytrace_max_range"] == 3.0 and scan["sensor_frame"] == "base_scan"
 
 
+def test_every_laser_of_a_profile_is_a_scan_source_of_each_costmap(tmp_path):
+    sys.path.insert(0, str(ROOT / "test" / "sims"))
+    from test_hosted_world import TWO_LASERS
+
+    robot = tmp_path / "two_lasers.yaml"
+    robot.write_text(TWO_LASERS)
+    out = tmp_path / "two.yaml"
+    run = ambiegen("nav2-params", JAZZY, "--robot", robot, "-o", out)
+    assert run.returncode == 0, run.stderr
+    params = read(out)
+    for name in ("local_costmap", "global_costmap"):
+        layers = [layer for layer in costmap(params, name).values() if isinstance(layer, dict) and "scan" in layer]
+        assert layers, name
+        for layer in layers:
+            front, rear = layer["scan"], layer["scan_rear"]
+            assert layer["observation_sources"].split() == ["scan", "scan_rear"]
+            assert (front["sensor_frame"], rear["sensor_frame"], rear["topic"]) == ("front_laser", "rear_laser",
+                                                                                  "/scan_rear")
+            # the rear laser reaches 5 m: its ranges no farther; the rest of its settings the first source's
+            assert rear["raytrace_max_range"] <= 5.0 and rear["obstacle_max_range"] <= 5.0
+            assert {k: v for k, v in rear.items() if "range" not in k and k not in ("topic", "sensor_frame")} == \
+                {k: v for k, v in front.items() if "range" not in k and k not in ("topic", "sensor_frame")}
+
+
 def test_a_polygon_robot_gets_its_footprint(tmp_path):
     out = tmp_path / "omni.yaml"
     run = ambiegen("nav2-params", JAZZY, "--robot", "omni_base", "-o", out)

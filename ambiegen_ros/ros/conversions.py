@@ -88,9 +88,10 @@ def path_points(msg_path: Any) -> np.ndarray:
 
 # --- a robot's world: odometry, transforms, laser, velocity commands ------------------------------
 def odometry(make: Make, now_ns: int, x: float, y: float, yaw: float, v: float = 0.0, w: float = 0.0,
-             frame_id: str = "map", child_frame_id: str = "base_link") -> Any:
-    """``nav_msgs/Odometry``: the pose in ``frame_id``, the twist (forward, turn) in the body frame."""
-    twist = make("geometry_msgs/msg/Twist", linear=make("geometry_msgs/msg/Vector3", x=float(v), y=0.0, z=0.0),
+             frame_id: str = "map", child_frame_id: str = "base_link", vy: float = 0.0) -> Any:
+    """``nav_msgs/Odometry``: the pose in ``frame_id``, the twist (forward, turn and, for an
+    omnidirectional base, sideways ``vy``) in the body frame."""
+    twist = make("geometry_msgs/msg/Twist", linear=make("geometry_msgs/msg/Vector3", x=float(v), y=float(vy), z=0.0),
                  angular=make("geometry_msgs/msg/Vector3", x=0.0, y=0.0, z=float(w)))
     return make("nav_msgs/msg/Odometry", header=header(make, now_ns, frame_id), child_frame_id=child_frame_id,
                 pose=make("geometry_msgs/msg/PoseWithCovariance", pose=pose(make, x, y, yaw)),

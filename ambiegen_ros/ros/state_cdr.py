@@ -57,15 +57,16 @@ class _Cdr:
 
 
 def odometry(now_ns: int, x: float, y: float, yaw: float, v: float, w: float, frame_id: str,
-             child_frame_id: str) -> bytes:
-    """``nav_msgs/Odometry`` as ``conversions.odometry`` builds it (covariances zero)."""
+             child_frame_id: str, vy: float = 0.0) -> bytes:
+    """``nav_msgs/Odometry`` as ``conversions.odometry`` builds it (covariances zero; ``vy`` the
+    sideways speed of an omnidirectional base)."""
     out = _Cdr()
     out.stamp(now_ns)
     out.string(frame_id)
     out.string(child_frame_id)
     out.planar_pose(x, y, yaw)
     out.raw(_ZEROS_36, 8)
-    out.raw(_VEC3.pack(float(v), 0.0, 0.0) + _VEC3.pack(0.0, 0.0, float(w)), 8)
+    out.raw(_VEC3.pack(float(v), float(vy), 0.0) + _VEC3.pack(0.0, 0.0, float(w)), 8)
     out.raw(_ZEROS_36, 8)
     return out.bytes()
 

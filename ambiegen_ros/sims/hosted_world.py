@@ -9,16 +9,17 @@ only velocity commands come in.
   takes one step, so that every message from before it carries an older stamp than any after.
 * *Commands* are held until a newer one arrives, for at most ``cmd_timeout`` simulated seconds
   (then the robot brakes to a stop), as a robot base's velocity watchdog does; 0 holds forever.
-* *Scans* are due every ``scan_every`` steps, counted from the last new map or teleport (the
-  first one right away). Beams that hit nothing read ``inf`` (REP 117: no
-  return within range).
+* *Scans* of the first laser are due every ``scan_every`` steps, counted from the last new map or
+  teleport (the first one right away); a profile's other lasers each at their own ``rate``,
+  rounded to a whole number of steps, on the same count. Beams that hit nothing read ``inf``
+  (REP 117: no return within range).
 * *Lockstep* (optional): after each scan the world waits for the controller's next command
   before it steps on, so a controller as slow as it likes sees the same world as one that is
   fast. Its run is then the in-process run, step for step (``sims.robot.drive`` steers one scan
   per step with ``dt`` = the scan period).
 * *Robot profile* (``sims.robot_profile``, issue 69; None: Stage's Pioneer): the body, drive,
-  limits and lasers of the world's robot. Every laser scans when a scan is due (``scans``); a
-  command's sideways speed moves an omnidirectional base only.
+  limits and lasers of the world's robot. Each laser scans when it is due (``due_lasers``,
+  ``scans``); a command's sideways speed moves an omnidirectional base only.
 * *Laser noise* comes from a generator seeded with ``seed`` at every new map and teleport, so a
   run is reproducible for its seed whatever came before it.
 """
@@ -56,7 +57,11 @@ class HostedWorld:
         self.cmd: tuple[float, ...] = (0.0, 0.0)
         self.cmd_k = -1  # step at which the held command arrived (-1: none)
         self.awaiting = False  # lockstep: a scan went out and no command answered it yet
-        self.next_scan_k = 0  # the step of the next scan (right away after a new map or teleport)
+        # each laser's period in steps (the first: scan_every) and the step of its next scan (right
+        # away after a new map or teleport)
+        self.laser_every = [self.scan_every] + [laser_steps(las.rate, self.cfg.dt)
+                                                for las in (profile.lasers[1:] if profile is not None else ())]
+        self.next_laser_k = [0] * len(self.laser_every)
         self.contact = False
         self.runs = 0
 
@@ -111,7 +116,7 @@ class HostedWorld:
         self.cmd, self.cmd_k = (0.0, 0.0), -1
         self.contact = w.clearance() <= 0.0
         self.awaiting = False
-        self.next_scan_k = self.k
+        self.next_laser_k = [self.k] * len(self.laser_every)
         self.runs += 1
 
     def command(self, v: float, w: float, vy: float = 0.0) -> None:
@@ -129,7 +134,13 @@ class HostedWorld:
 
     @property
     def scan_due(self) -> bool:
-        return self.ready and self.k >= self.next_scan_k
+        """The first laser's scan is due (the one lockstep waits on)."""
+        return self.ready and self.k >= self.next_laser_k[0]
+
+    @property
+    def due_lasers(self) -> list[int]:
+        """The lasers whose scan is due now, in the profile's order (none before a map)."""
+        return [i for i, k in enumerate(self.next_laser_k) if self.ready and self.k >= k]
 
     def step(self) -> None:
         """One ``dt``: the held command (zero once older than ``cmd_timeout``) moves the body."""
@@ -145,17 +156,18 @@ class HostedWorld:
     def scan(self) -> np.ndarray:
         """Ranges of every beam of the (first) laser at the current pose (``inf``: nothing within
         range). In lockstep the world then waits for a command."""
-        return self.scans()[0]
+        return self.scans([0])[0]
 
-    def scans(self) -> list[np.ndarray]:
-        """``scan`` for each laser of the robot, in the profile's order (one without a profile)."""
+    def scans(self, lasers: list[int] | None = None) -> dict[int, np.ndarray]:
+        """``scan`` of each laser named (by its index in the profile; default: every one), each next
+        due one period on; the first laser's scan sets a lockstep world waiting."""
         assert self.world is not None
-        out = []
-        for laser in range(len(self.world.lasers)):
+        out = {}
+        for laser in range(len(self.laser_every)) if lasers is None else lasers:
             ranges, hits = self.world.scan(laser)
-            out.append(np.where(hits, ranges, np.inf))
-        self.next_scan_k = self.k + self.scan_every
-        if self.lockstep:
+            out[laser] = np.where(hits, ranges, np.inf)
+            self.next_laser_k[laser] = self.k + self.laser_every[laser]
+        if self.lockstep and 0 in out:
             self.awaiting = True
         return out
 
@@ -192,8 +204,18 @@ class HostedWorld:
         half = math.radians(self.cfg.fov_deg) / 2
         return np.linspace(-half, half, self.cfg.beams)
 
+    def laser_period(self, laser: int) -> float:
+        """Simulated seconds between two scans of a laser (its rate rounded to whole steps)."""
+        return self.laser_every[laser] * self.cfg.dt
+
     def _local(self, pose: tuple[float, float, float]) -> tuple[float, float, float]:
         return pose[0] - self.origin[0], pose[1] - self.origin[1], pose[2]
 
 
-__all__ = ["HostedWorld"]
+def laser_steps(rate: float, dt: float) -> int:
+    """A laser's period in whole steps of ``dt``: its ``rate`` rounded to the nearest that the step
+    allows (5.5 Hz at 0.02 s: every 9 steps, 5.56 Hz), at least one step."""
+    return max(1, round(1.0 / (rate * dt)))
+
+
+__all__ = ["HostedWorld", "laser_steps"]

@@ -1,6 +1,7 @@
 """``robot_world`` with a robot profile (issue 69), a real subprocess on real DDS: the TurtleBot 4's
 360-degree lidar on its turned mount (its frames on ``/tf_static``, its beams on ``/scan``), an
-omnidirectional base that ``linear.y`` moves sideways, and a car that a turn without speed does not
+omnidirectional base that ``linear.y`` moves sideways (and whose odometry says so), two lasers each
+at its own rate, and a car that a turn without speed does not
 turn. Waits follow simulated time on the odometry stamps, never the wall clock.
 """
 from __future__ import annotations
@@ -80,8 +81,32 @@ def test_the_turtlebot4s_lidar_sees_all_around_from_its_turned_mount(graph):
 def test_an_omnidirectional_base_moves_sideways_on_linear_y(graph):
     _, _, got, command = world_with(graph, "omni_base")
     command(y=0.4)
-    pose = got["odom"][-1].pose.pose
+    odom = got["odom"][-1]
+    pose = odom.pose.pose
     assert pose.position.y > 15.5 and pose.position.x == pytest.approx(15.0, abs=1e-6)
+    # the sideways speed is in the odometry's twist, as a base's odometry gives it to Nav2
+    assert odom.twist.twist.linear.y == pytest.approx(0.4) and odom.twist.twist.linear.x == 0.0
+
+
+def test_each_laser_scans_at_its_own_rate_on_its_own_topic(graph, tmp_path):
+    """A profile with a 10 Hz front laser and a 4 Hz rear one (every 12 steps of 0.02 s: 0.24 s)."""
+    sys.path.insert(0, str(REPO / "test" / "sims"))
+    from test_hosted_world import TWO_LASERS
+
+    path = tmp_path / "two_lasers.yaml"
+    path.write_text(TWO_LASERS)
+    node, procs, got, _ = world_with(graph, str(path))
+    rear: list = []
+    node.create_subscription("sensor_msgs/msg/LaserScan", "/scan_rear", rear.append, Qos(depth=100))
+    wait_for(node, procs, lambda: len(rear) >= 5, 120, "five scans of the rear laser")
+    front = [m for m in got["scan"] if conversions.stamp_ns(m.header) >= conversions.stamp_ns(rear[0].header)]
+    assert {m.header.frame_id for m in rear} == {"rear_laser"} and {m.header.frame_id for m in front} == {"front_laser"}
+    assert {len(m.ranges) for m in rear} == {91} and rear[0].range_max == pytest.approx(5.0)
+    assert rear[0].scan_time == pytest.approx(0.24) and front[0].scan_time == pytest.approx(0.1)
+    for scans, period in ((rear, 0.24), (front, 0.1)):
+        # best effort may drop a scan on a loaded machine: every gap a whole number of periods, most one
+        gaps = np.diff([conversions.stamp_ns(m.header) for m in scans]) / 1e9 / period
+        assert gaps == pytest.approx(np.round(gaps), abs=1e-6) and np.median(gaps) == 1.0, (period, gaps)
 
 
 def test_a_car_does_not_turn_on_the_spot(graph):

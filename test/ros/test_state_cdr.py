@@ -25,9 +25,11 @@ def cases(n: int = 300):
 
 
 def test_odometry_is_the_registrys_bytes(reg):
-    for stamp, x, y, yaw, v, w, frame, child in cases():
-        msg = conversions.odometry(reg.new, stamp, x, y, yaw, v, w, frame, child)
-        assert state_cdr.odometry(stamp, x, y, yaw, v, w, frame, child) == reg.serialize(msg, "nav_msgs/msg/Odometry")
+    for i, (stamp, x, y, yaw, v, w, frame, child) in enumerate(cases()):
+        vy = 0.0 if i % 2 else v / 3  # an omnidirectional base's sideways speed, every other case
+        msg = conversions.odometry(reg.new, stamp, x, y, yaw, v, w, frame, child, vy)
+        fast = state_cdr.odometry(stamp, x, y, yaw, v, w, frame, child, vy)
+        assert fast == reg.serialize(msg, "nav_msgs/msg/Odometry")
 
 
 def test_tf_and_clock_are_the_registrys_bytes(reg):
@@ -49,5 +51,8 @@ def test_odometry_reads_back_as_written(reg):
     assert (msg.header.frame_id, msg.child_frame_id) == ("odom", "base_link")
     p, q = msg.pose.pose.position, msg.pose.pose.orientation
     assert (p.x, p.y) == (3.0, -4.0) and math.isclose(2 * math.atan2(q.z, q.w), 1.2)
-    assert (msg.twist.twist.linear.x, msg.twist.twist.angular.z) == (0.4, -0.3)
+    assert (msg.twist.twist.linear.x, msg.twist.twist.linear.y, msg.twist.twist.angular.z) == (0.4, 0.0, -0.3)
     assert not msg.pose.covariance.any() and not msg.twist.covariance.any()
+    sideways = reg.deserialize(state_cdr.odometry(0, 0.0, 0.0, 0.0, 0.1, 0.0, "odom", "base_link", -0.25),
+                               "nav_msgs/msg/Odometry")
+    assert (sideways.twist.twist.linear.x, sideways.twist.twist.linear.y) == (0.1, -0.25)

@@ -134,3 +134,56 @@ def test_answering_every_scan_is_the_in_process_run():
         xs.append(h.pose[:2])
     assert ref["outcome"] == "success"
     assert np.allclose(np.asarray(xs), np.column_stack([ref["timeline"]["x"], ref["timeline"]["y"]]), atol=1e-9)
+
+
+TWO_LASERS = """name: two_lasers
+base_frame: base_link
+footprint: {polygon: [[-0.3, -0.25], [0.3, -0.25], [0.3, 0.25], [-0.3, 0.25]]}
+drive: {kind: differential}
+limits:
+  max_speed: {x: 0.5, y: 0.0, theta: 1.5}
+  max_accel: {x: 1.0, y: 0.0, theta: 2.0}
+lasers:
+  - {frame: front_laser, parent: base_link, x: 0.25, y: 0.0, yaw_deg: 0.0, fov_deg: 180.0, beams: 181,
+     range: 10.0, rate: 10.0, noise: 0.0, topic: /scan}
+  - {frame: rear_laser, parent: base_link, x: -0.25, y: 0.0, yaw_deg: 180.0, fov_deg: 180.0, beams: 91,
+     range: 5.0, rate: 4.0, noise: 0.0, topic: /scan_rear}
+"""
+
+
+def test_each_laser_of_a_profile_scans_at_its_own_rate(tmp_path):
+    """10 Hz and 4 Hz at 0.02 s steps: every 5 and every 12 steps (4.17 Hz, the nearest whole number
+    of steps), both right away after a reset; lockstep waits on the first laser only."""
+    from ambiegen_ros.sims.hosted_world import laser_steps
+    from ambiegen_ros.sims.robot_profile import load_profile
+
+    path = tmp_path / "two_lasers.yaml"
+    path.write_text(TWO_LASERS)
+    profile = load_profile(str(path))
+    h = HostedWorld(RobotSimConfig(dt=0.02), scan_every=laser_steps(10.0, 0.02), profile=profile)
+    assert h.laser_every == [5, 12] and h.laser_period(1) == pytest.approx(0.24)
+    h.load_map(box(), 1.0)
+    h.teleport(10.0, 10.0, 0.0)
+    when: dict[int, list[int]] = {0: [], 1: []}
+    for _ in range(120):
+        due = h.due_lasers
+        scans = h.scans(due)
+        assert set(scans) == set(due)
+        for laser, ranges in scans.items():
+            when[laser].append(h.k)
+            assert len(ranges) == (181, 91)[laser]
+        h.step()
+    start = when[0][0]
+    assert when[1][0] == start  # both right away
+    assert np.diff(when[0]).tolist() == [5] * (len(when[0]) - 1) and len(when[0]) == 24
+    assert np.diff(when[1]).tolist() == [12] * (len(when[1]) - 1) and len(when[1]) == 10
+    # the rear laser looks back from its own mount: the west wall's face (x = 1) 4 - 0.25 - 1 m behind
+    h.teleport(4.0, 10.0, 0.0)
+    rear = h.scans([1])[1]
+    assert rear[45] == pytest.approx(4.0 - 0.25 - 1.0, abs=0.01) and np.isinf(rear[0]) and np.isinf(rear[-1])
+    locked = HostedWorld(RobotSimConfig(dt=0.02), scan_every=5, lockstep=True, profile=profile)
+    locked.load_map(box(), 1.0)
+    locked.scans([1])
+    assert locked.can_step  # the second laser's scan does not hold the world
+    locked.scans([0])
+    assert not locked.can_step
