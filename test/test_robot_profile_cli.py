@@ -119,6 +119,25 @@ def test_a_car_under_mppis_ackermann_model_gets_its_turning_radius(tmp_path):
     assert mppi["AckermannConstraints"]["min_turning_r"] == pytest.approx(load_profile("ackermann_car").min_turning_radius)
 
 
+def test_the_shipped_car_set_up_drives_the_car_with_its_turning_radius(tmp_path):
+    """``config/nav2/robots/ackermann_car.yaml`` over Jazzy's params: Smac Hybrid-A* and MPPI's
+    Ackermann model, both at the profile's radius, accepted for the car; the TurtleBot 4's params alone
+    are refused for it (above)."""
+    out = tmp_path / "car.yaml"
+    run = ambiegen("nav2-params", f"{JAZZY}+{ROOT / 'config' / 'nav2' / 'robots' / 'ackermann_car.yaml'}",
+                   "--robot", "ackermann_car", "-o", out)
+    assert run.returncode == 0, run.stderr
+    params = read(out)
+    radius = load_profile("ackermann_car").min_turning_radius
+    planner = params["planner_server"]["ros__parameters"]["GridBased"]
+    assert planner["plugin"] == "nav2_smac_planner::SmacPlannerHybrid" and planner["motion_model_for_search"] == "DUBIN"
+    assert planner["minimum_turning_radius"] == pytest.approx(radius)
+    mppi = params["controller_server"]["ros__parameters"]["FollowPath"]
+    assert mppi["motion_model"] == "Ackermann" and mppi["AckermannConstraints"]["min_turning_r"] == pytest.approx(radius)
+    assert mppi["vx_min"] == -0.35  # the rest of Jazzy's MPPI as it was
+    assert yaml.safe_load(costmap(params, "local_costmap")["footprint"])  # the car's body, not the radius
+
+
 def test_the_jazzy_params_and_urdf_give_the_turtlebot4_profile(tmp_path):
     out = tmp_path / "my_robot.yaml"
     run = ambiegen("robot-profile", "--from-params", JAZZY, "--urdf", URDF, "-o", out)

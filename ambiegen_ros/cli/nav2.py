@@ -24,7 +24,7 @@ def cmd_nav2_params(args: argparse.Namespace) -> int:
         raise BadInput(f"the package's overlay {'/'.join(OVERLAY_FILE)} is not installed here: name one with --overlay")
     first, *fixes = args.params.split("+")
     tree = None
-    profile, notes = _robot(args.robot, first)
+    profile, notes = _robot(args.robot), []
     try:
         if fixes:  # the merge and the tree of `ambiegen compare --params`, so both run the same stack
             from ..trials.configs import StackConfig, merged
@@ -37,9 +37,10 @@ def cmd_nav2_params(args: argparse.Namespace) -> int:
                 params, tree = with_tree(params, trees, Path(args.output).parent, Path(args.output).stem)
         else:
             params = merged_params(first, overlay, args.time_scale)
-        if profile is not None:
+        if profile is not None:  # checked on the merged params: a fix may set the controller (a car's set-up)
             from ..nav2_params import with_robot
 
+            notes = _check_controller(args.robot, profile, params)
             params = with_robot(params, profile)
         out = write_params(params, args.output, f"{first}" + (f" + {overlay}" if overlay else "")
                            + "".join(f" + {fix}" for fix in fixes)
@@ -65,21 +66,26 @@ def cmd_nav2_params(args: argparse.Namespace) -> int:
     return 0
 
 
-def _robot(name: str, params_file: str) -> tuple:
-    """The ``--robot`` profile checked against the params' controllers (None: the overlay's Pioneer)."""
+def _robot(name: str):
+    """The ``--robot`` profile (None: the overlay's Pioneer); a bad one is one line naming the field."""
     if not name:
-        return None, []
-    from ..nav2_params import load_yaml
-    from ..sims.robot_profile import ProfileError, check_controller, load_profile
+        return None
+    from ..sims.robot_profile import ProfileError, load_profile
 
     try:
-        profile = load_profile(name)
-        params = load_yaml(params_file, "params_file")
-        return profile, check_controller(profile, params)
+        return load_profile(name)
     except ProfileError as exc:
         raise BadInput(f"--robot {name}: {exc}") from None
-    except ValueError as exc:
-        raise BadInput(str(exc)) from None
+
+
+def _check_controller(name: str, profile, params: dict) -> list[str]:
+    """``check_controller`` on the params as merged, its refusal one line naming the field."""
+    from ..sims.robot_profile import ProfileError, check_controller
+
+    try:
+        return check_controller(profile, params)
+    except ProfileError as exc:
+        raise BadInput(f"--robot {name}: {exc}") from None
 
 
 def cmd_robot_profile(args: argparse.Namespace) -> int:
