@@ -11,7 +11,8 @@ Each run is one ``nav2_campaign.launch.py`` campaign on the maps of ``config/rob
 2, ``mppi`` = Jazzy's ``nav2_params.yaml`` + the overlay through ``navigation_launch.py`` at real
 time (the largest time scales that keep real time's verdicts on this 2-core machine), ``hardened`` =
 ``mppi`` with ``fix:hardened`` (issue 59: the map's walls in the local costmap, the patient tree);
-``--robot`` drives another robot profile than Stage's Pioneer (issue 69). The campaign
+``ackermann`` = ``mppi`` with Nav2's Ackermann set-up (``config/nav2/robots/ackermann_car.yaml``, for
+``--robot ackermann_car``); ``--robot`` drives another robot profile than Stage's Pioneer (issue 69). The campaign
 stops sending maps after ``--nav2-hours`` of simulated time (its ``execution_budget`` in wall
 seconds, at the time scale); the map in flight then finishes. From its bag: Nav2 runs, their simulated time, failures, known failures (not counted), the
 distinct new certified failures (the campaign gallery's count: every failure has a clearance route,
@@ -53,6 +54,9 @@ CONTROLLERS = {  # controller: (launch arguments, time scale)
     "mppi": ({"nav2": "bringup", "params_file": JAZZY_PARAMS}, 1.0),
     # Jazzy's MPPI stack with fix:hardened (issue 59), merged as `ambiegen compare` merges it
     "hardened": ({"nav2": "bringup", "params_file": JAZZY_PARAMS + "+fix:hardened"}, 1.0),
+    # Jazzy's stack with Nav2's documented Ackermann set-up (issue 69), for --robot ackermann_car
+    "ackermann": ({"nav2": "bringup", "params_file": JAZZY_PARAMS + "+" + str(REPO / "config/nav2/robots/ackermann_car.yaml")},
+                  1.0),
 }
 
 
@@ -73,7 +77,7 @@ def run_one(args, install: Path, logs: Path) -> dict:
     extra, k = CONTROLLERS[args.controller]
     extra = {key: value.format(jazzy=Path(args.setup).parent) for key, value in extra.items()}
     out_dir = Path(tempfile.mkdtemp(prefix=f"{args.controller}_{args.algorithm}_s{args.seed}_", dir=logs))
-    if "+" in extra.get("params_file", ""):
+    if "+" in extra.get("params_file", ""):  # the fixes or set-up merged as `ambiegen compare` merges them
         extra.update(hardened_params(extra["params_file"], Path(args.setup).parent, out_dir))
     budget = args.nav2_hours * 3600.0 / k
     launch = "ros2 launch ambiegen_ros nav2_campaign.launch.py " + " ".join(f"{key}:={value}" for key, value in dict(
