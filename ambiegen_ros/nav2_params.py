@@ -196,6 +196,9 @@ def _controller_limits(section: dict, plugin: str, profile: Any) -> None:
         for key, limit, negative in (("vx_max", vx, False), ("vx_min", vx, True), ("wz_max", wz, False)):
             _cap(section, key, limit, negative)
         section.update(ax_max=ax, ax_min=-ax, az_max=az)
+        critic = section.get("CostCritic")
+        if isinstance(critic, dict):  # the overlay's footprint check is for a body that is no disc; a disc's
+            critic["consider_footprint"] = not profile.round  # is its centre's cost (Nav2's default, its docs)
         if omni:
             _cap(section, "vy_max", vy)
             section["ay_max"] = ay

@@ -47,6 +47,8 @@ def test_nav2_params_writes_the_turtlebot4s_radius_laser_and_limits(tmp_path):
     assert smoother["max_accel"] == [2.5, 0.0, 3.2] and smoother["max_velocity"] == [0.5, 0.0, 2.0]
     mppi = params["controller_server"]["ros__parameters"]["FollowPath"]
     assert (mppi["ax_max"], mppi["az_max"], mppi["vx_max"]) == (2.5, 3.2, 0.5)
+    # the overlay checks the Pioneer's box footprint in MPPI's cost critic; a disc needs only its centre's cost
+    assert mppi["CostCritic"]["consider_footprint"] is False
     assert "turtlebot4" in run.stdout and "robot_profile:=turtlebot4" in run.stdout
     default = tmp_path / "pioneer.yaml"
     assert ambiegen("nav2-params", JAZZY, "-o", default).returncode == 0  # without --robot: the overlay's Pioneer
@@ -96,6 +98,7 @@ def test_a_polygon_robot_gets_its_footprint(tmp_path):
     c = costmap(read(out), "local_costmap")
     assert yaml.safe_load(c["footprint"]) == [[0.25, 0.25], [-0.25, 0.25], [-0.25, -0.25], [0.25, -0.25]]
     assert "robot_radius" not in c
+    assert read(out)["controller_server"]["ros__parameters"]["FollowPath"]["CostCritic"]["consider_footprint"] is True
     assert "never moves sideways" in run.stdout  # Jazzy's MPPI is DiffDrive: allowed, said
 
 
