@@ -346,12 +346,17 @@ def test_nav2_search_report_tests_each_side_against_random_from_three_runs(tmp_p
     hazards += [{**row("mppi", "nsga2", d), "config": "config/robot_hazards_threat.yaml"} for d in (1, 2, 3)]
     hazards[-1]["nav2_hours"] = 0.5  # a run whose hour of sending held half a Nav2 hour
     rows += hazards
+    # another robot's runs (issue 69) are a side of their own: never compared with the Pioneer's
+    rows += [{**row("mppi", "nsga2", 0), "config": "config/robot_hazards_threat.yaml", "robot": "turtlebot4"}
+             for _ in range(3)]
     monkeypatch.setattr(nav2_search, "OUT", tmp_path / "nav2_search.jsonl")
     nav2_search.OUT.write_text("".join(json.dumps(r) + "\n" for r in rows))
     assert nav2_search.report() == 0
     out = capsys.readouterr().out
-    dwb, rest = out.split("## mppi, hazards scenarios")
-    hazards_part, mppi = rest.split("## mppi, walls scenarios")
+    dwb, rest = out.split("## mppi, pioneer2dx, hazards scenarios")
+    hazards_part, rest = rest.split("## mppi, pioneer2dx, walls scenarios")
+    mppi, tb4 = rest.split("## mppi, turtlebot4, hazards scenarios")
+    assert "nsga2 (in_the_loop, config/robot_hazards_threat.yaml): 3 runs" in tb4 and "> random" not in tb4
     assert ("nsga2 (in_the_loop, c.yaml) > random in distinct new failures, 3 against 3 runs: one-sided Mann-Whitney "
             "U = 9, exact p = 0.050") in dwb
     assert "> random in near misses, 3 against 3 runs: one-sided Mann-Whitney U = 9, exact p = 0.050" in dwb

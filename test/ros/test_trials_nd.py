@@ -22,6 +22,7 @@ from mcap.reader import make_reader
 
 REPO = Path(__file__).resolve().parents[2]
 
+from ambiegen_ros.nodes.replay import recorded_scenarios  # noqa: E402
 from ambiegen_ros.problems import get_problem  # noqa: E402
 from ambiegen_ros.ros import topics  # noqa: E402
 from ambiegen_ros.sims.full_model import full_model_executor  # noqa: E402
@@ -98,9 +99,14 @@ def test_rerun_gives_every_run_its_verdict_logs_every_scenario_and_resumes(tmp_p
     # the bag, read by the mcap library alone: every scenario sent and every result, and what ran
     bags = {r["bag"] for r in rows}
     assert len(bags) == 1
-    with open(bags.pop(), "rb") as fh:
+    bag = bags.pop()
+    with open(bag, "rb") as fh:
         counts = Counter(channel.topic for _, channel, _ in make_reader(fh).iter_messages())
-    assert counts[topics.scenarios("robot")] == 6 and counts[topics.RESULTS] == 6 and counts[topics.RUN_CONFIG] == 1
+    # a scenario may go out twice: the generator re-sends one whose worker's heartbeat came late on a
+    # loaded machine (core/dispatch.py), and the adapter answers the repeat from its record (its result again)
+    assert counts[topics.scenarios("robot")] >= 6 and counts[topics.RESULTS] >= 6 and counts[topics.RUN_CONFIG] == 1
+    recorded = recorded_scenarios(bag)
+    assert len(recorded.scenarios) == 6 and set(recorded.scenarios) == set(recorded.outcomes)
     assert counts["/odom"] > 100
     # the same command again: nothing to make; one more repeat: only that
     again = ambiegen("rerun", *args, "--repeat", "2")
