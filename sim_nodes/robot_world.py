@@ -132,7 +132,6 @@ class RobotWorldNode:
         self.world.warm_up()  # before any endpoint: on the graph, the world can answer at once
         warm_s = time.monotonic() - t0
         self.cfg = cfg
-        self.scan_period = 1.0 / scan_rate
         self.markers_every = max(1, int(round(scan_rate / markers_rate)))  # scans per marker array
         self.scans_since_markers = 0
         self.angles = self.world.beam_angles
