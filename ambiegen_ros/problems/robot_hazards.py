@@ -25,6 +25,14 @@ Elements, in this order: 48 walls (``type`` horizontal | vertical, ``size``, ``p
 paper's), the start, the goal, then 0..``max_hazards`` hazards. Every element has every attribute
 (one matrix); a kind ignores the others, and ``canonical`` sets them to one value. ``extent`` is the
 hazard's size as a share of its kind's range (0-100 %).
+
+**Vias** (issue 68, Nav2's ``ComputePathThroughPoses``): ``min_vias..max_vias`` rows of kind
+``via`` (a cell of ``via_area`` and a yaw, as the start and goal) after the goal, flown through in
+the order they stand; hazards may stand among them (a crossover mixes the two lists) and
+``canonical`` puts the vias first. A planner stack asks for a path start -> vias -> goal; a stack
+that drives (Nav2's navigator, our ND robot) is given the start and the goal only, and hazards stay
+on the start -> goal route. The code 7 comes after every older kind, so old files and genomes
+decode unchanged; ``max_vias: 0`` (the default) draws no random number more than before.
 """
 from __future__ import annotations
 
@@ -36,8 +44,8 @@ import numpy as np
 
 from ..core.attributes import Categorical, FloatInterval, IntRange
 
-TYPES = ("horizontal", "vertical", "start", "goal", "box", "post", "person")
-HORIZONTAL, VERTICAL, START, GOAL, BOX, POST, PERSON = range(7)
+TYPES = ("horizontal", "vertical", "start", "goal", "box", "post", "person", "via")  # append only: codes are stored
+HORIZONTAL, VERTICAL, START, GOAL, BOX, POST, PERSON, VIA = range(8)
 HAZARD_KINDS = (BOX, POST, PERSON)
 MIN_WALK = 0.5  # a person's path between the walls is at least this long [m]
 N_WALLS = 48
@@ -47,11 +55,11 @@ TYPE, SIZE, POSITION, ROW, ALONG, OFFSET, HEADING, EXTENT, SPEED, DELAY = range(
 ATTRIBUTES = (
     Categorical("type", TYPES),
     IntRange("size", 5, 15, 1, tolerance=2, unit="m"),  # walls
-    IntRange("position", 1, 48, 1, tolerance=2, unit="m"),  # walls: x of the centre; start/goal: x cell
-    IntRange("row", 1, 48, 1, tolerance=2, unit="m"),  # start/goal: y cell
+    IntRange("position", 1, 48, 1, tolerance=2, unit="m"),  # walls: x of the centre; start/goal/via: x cell
+    IntRange("row", 1, 48, 1, tolerance=2, unit="m"),  # start/goal/via: y cell
     IntRange("along", 0, 100, 5, tolerance=10, unit="% of the route"),  # hazards
     IntRange("offset", -25, 25, 1, tolerance=3, unit="dm left of the route"),  # hazards
-    IntRange("heading", 0, 345, 15, tolerance=30, unit="deg"),  # start/goal yaw; person: from the route
+    IntRange("heading", 0, 345, 15, tolerance=30, unit="deg"),  # start/goal/via yaw; person: from the route
     IntRange("extent", 0, 100, 10, tolerance=20, unit="% of the kind's size range"),  # hazards
     FloatInterval("speed", 0.3, 1.5, tolerance=0.2, unit="m/s"),  # person
     FloatInterval("delay", 0.0, 60.0, tolerance=10.0, unit="s"),  # person
@@ -64,6 +72,7 @@ USED = {
     START: (POSITION, ROW, HEADING), GOAL: (POSITION, ROW, HEADING),
     BOX: (ALONG, OFFSET, EXTENT), POST: (ALONG, OFFSET, EXTENT),
     PERSON: (ALONG, OFFSET, HEADING, EXTENT, SPEED, DELAY),
+    VIA: (POSITION, ROW, HEADING),
 }
 
 
@@ -79,6 +88,8 @@ class HazardSettings:
     person_radius: tuple
     person_reach: float  # a person walks this far on each side of its point on the route [m]
     clear_of_ends: float  # a hazard keeps this far from the start and goal centres [m]
+    min_vias: int = 0  # vias (``via``) per scenario, at least and at most
+    max_vias: int = 0
 
     @classmethod
     def of(cls, config: Any) -> "HazardSettings":
@@ -86,11 +97,14 @@ class HazardSettings:
 
 
 def area_of(config: Any, name: str) -> tuple[tuple[int, int], tuple[int, int]]:
-    """``start_area`` / ``goal_area`` as two cells; the goal's default: ``goal`` +- 2 cells."""
+    """``start_area`` / ``goal_area`` / ``via_area`` as two cells; the goal's default: ``goal`` +- 2
+    cells; the vias': the room inside its border."""
     area = getattr(config, name)
-    if area is None:
+    n = config.map_size - 2
+    if area is None and name == "via_area":
+        area = ((1, 1), (n, n))
+    elif area is None:
         cx, cy = config.goal if name == "goal_area" else config.start
-        n = config.map_size - 2
         area = ((max(1, cx - 2), max(1, cy - 2)), (min(n, cx + 2), min(n, cy + 2)))
     (x0, y0), (x1, y1) = area
     return (int(x0), int(y0)), (int(x1), int(y1))
@@ -156,14 +170,18 @@ class HazardLayout:
     start_yaw: float  # radians
     goal_yaw: float
     hazards: list[dict[str, Any]]  # one dict per hazard: kind and its numbers in metres / seconds
+    vias: list[tuple[int, int]] = field(default_factory=list)  # cells, in the order flown through
+    via_yaws: list[float] = field(default_factory=list)  # radians
 
 
 def decode(cells: np.ndarray, length: int, settings: HazardSettings) -> HazardLayout:
-    """The start, goal and hazards of one genome ``(m_max, 10)`` (walls are ``build_grids``')."""
+    """The start, goal, vias and hazards of one genome ``(m_max, 10)`` (walls are ``build_grids``')."""
     start, goal = cells[START_ROW], cells[GOAL_ROW]
     hazards = []
     for row in cells[FIRST_HAZARD:length]:
         kind = int(round(row[TYPE]))
+        if kind == VIA:
+            continue
         share = float(row[EXTENT]) / 100.0
         size = {BOX: settings.box_side, POST: settings.post_diameter, PERSON: settings.person_radius}.get(kind)
         hazards.append({
@@ -171,8 +189,17 @@ def decode(cells: np.ndarray, length: int, settings: HazardSettings) -> HazardLa
             "heading": float(row[HEADING]), "size": lerp(size, share) if size else 0.0,
             "speed": float(row[SPEED]), "delay": float(row[DELAY]),
         })
+    rows = via_rows(cells, length)
     return HazardLayout((int(start[POSITION]), int(start[ROW])), (int(goal[POSITION]), int(goal[ROW])),
-                        math.radians(float(start[HEADING])), math.radians(float(goal[HEADING])), hazards)
+                        math.radians(float(start[HEADING])), math.radians(float(goal[HEADING])), hazards,
+                        [(int(cells[i, POSITION]), int(cells[i, ROW])) for i in rows],
+                        [math.radians(float(cells[i, HEADING])) for i in rows])
+
+
+def via_rows(cells: np.ndarray, length: int) -> list[int]:
+    """The rows of the vias, in the order they are flown through."""
+    kinds = np.rint(cells[FIRST_HAZARD:length, TYPE]).astype(int)
+    return (FIRST_HAZARD + np.flatnonzero(kinds == VIA)).tolist()
 
 
 def obstacles_on(route: PlacementRoute, layout: HazardLayout, settings: HazardSettings, grid: np.ndarray,
@@ -369,7 +396,9 @@ def features(route: PlacementRoute, layout: HazardLayout, posts: np.ndarray, box
 # --- sampling, validity, canonical form ----------------------------------------------------------
 def sample(walls_G: np.ndarray, config: Any, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Hazard genomes around sampled wall rows ``(n, 48, 3)``: start and goal uniform in their
-    areas with any yaw, 0..max_hazards hazards of uniform kind and attributes."""
+    areas with any yaw, 0..max_hazards hazards of uniform kind and attributes; with ``max_vias``,
+    min_vias..max_vias vias uniform in ``via_area`` before the hazards (drawn after everything
+    else, so a config without vias samples what it always did)."""
     n = len(walls_G)
     settings = HazardSettings.of(config)
     m_max = FIRST_HAZARD + settings.max_hazards
@@ -387,11 +416,35 @@ def sample(walls_G: np.ndarray, config: Any, rng: np.random.Generator) -> tuple[
     for j in (ALONG, OFFSET, HEADING, EXTENT, SPEED, DELAY):
         hz[:, :, j] = ATTRIBUTES[j].sample(rng, (n, settings.max_hazards))
     lengths = FIRST_HAZARD + count
+    if settings.max_vias:
+        G, lengths = _with_vias(G, lengths, config, settings, rng)
     return canonical(G, lengths)
 
 
+def _with_vias(G: np.ndarray, lengths: np.ndarray, config: Any, settings: HazardSettings,
+               rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """``G`` widened by ``max_vias`` rows, each genome's vias (uniform count, cell and yaw) between
+    its goal and its hazards."""
+    n, top = len(G), settings.max_vias
+    count = rng.integers(settings.min_vias, top + 1, n)
+    (x0, y0), (x1, y1) = area_of(config, "via_area")
+    V = np.zeros((n, top, G.shape[2]))
+    V[:, :, TYPE] = VIA
+    V[:, :, POSITION] = rng.integers(x0, x1 + 1, (n, top))
+    V[:, :, ROW] = rng.integers(y0, y1 + 1, (n, top))
+    V[:, :, HEADING] = ATTRIBUTES[HEADING].sample(rng, (n, top))
+    out = np.zeros((n, G.shape[1] + top, G.shape[2]))
+    out[:, :FIRST_HAZARD] = G[:, :FIRST_HAZARD]
+    for i in range(n):
+        k, h = int(count[i]), int(lengths[i]) - FIRST_HAZARD
+        out[i, FIRST_HAZARD:FIRST_HAZARD + k] = V[i, :k]
+        out[i, FIRST_HAZARD + k:FIRST_HAZARD + k + h] = G[i, FIRST_HAZARD:FIRST_HAZARD + h]
+    return out, lengths + count
+
+
 def canonical(G: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Cells a kind ignores set to one value (walls' ``row`` etc.), padding zeroed."""
+    """Cells a kind ignores set to one value (walls' ``row`` etc.), padding zeroed; vias moved before
+    the hazards, in their own order (where the hazards stand among them changes nothing)."""
     G = np.asarray(G, dtype=float).copy()
     kinds = np.rint(G[:, :, TYPE]).astype(int)
     for kind, used in USED.items():
@@ -399,12 +452,16 @@ def canonical(G: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarra
         for j, value in IGNORED.items():
             if value is not None and j not in used:
                 G[:, :, j][mask] = value
+    for i in np.flatnonzero((kinds[:, FIRST_HAZARD:] == VIA).any(axis=1)):
+        m = int(lengths[i])
+        order = np.argsort(kinds[i, FIRST_HAZARD:m] != VIA, kind="stable")
+        G[i, FIRST_HAZARD:m] = G[i, FIRST_HAZARD:m][order]
     return G, lengths
 
 
 def kind_reason(cells: np.ndarray, length: int, config: Any) -> str | None:
-    """Why a genome's elements are not walls, start, goal and hazards in that order, or outside
-    their areas (None: fine)."""
+    """Why a genome's elements are not walls, start, goal and then vias and hazards, or outside
+    their areas, or more or fewer than the config allows (None: fine)."""
     kinds = np.rint(cells[:length, TYPE]).astype(int)
     if length < FIRST_HAZARD:
         return f"hazards: {length} elements, need {N_WALLS} walls, the start and the goal"
@@ -418,10 +475,22 @@ def kind_reason(cells: np.ndarray, length: int, config: Any) -> str | None:
         x, y = int(cells[row, POSITION]), int(cells[row, ROW])
         if not (x0 <= x <= x1 and y0 <= y <= y1):
             return f"hazards: the {TYPES[kind]} ({x}, {y}) lies outside {name} ({x0}, {y0})..({x1}, {y1})"
-    bad = np.flatnonzero(~np.isin(kinds[FIRST_HAZARD:], HAZARD_KINDS))
+    lo, hi = int(getattr(config, "min_vias", 0)), int(getattr(config, "max_vias", 0))
+    tail = kinds[FIRST_HAZARD:]
+    bad = np.flatnonzero(~np.isin(tail, HAZARD_KINDS + ((VIA,) if hi else ())))
     if len(bad):
         i = FIRST_HAZARD + bad[0]
-        return f"hazards: elements[{i}] must be a box, post or person, not {TYPES[kinds[i]]}"
+        return f"hazards: elements[{i}] must be a {'via, ' if hi else ''}box, post or person, not {TYPES[kinds[i]]}"
+    vias = int((tail == VIA).sum())
+    if len(tail) - vias > int(config.max_hazards):
+        return f"hazards: {len(tail) - vias} hazards, at most {config.max_hazards} (max_hazards)"
+    if not lo <= vias <= hi:
+        return f"hazards: {vias} vias, need {lo}..{hi} (min_vias..max_vias)"
+    (x0, y0), (x1, y1) = area_of(config, "via_area")
+    for k, i in enumerate(via_rows(cells, length)):
+        x, y = int(cells[i, POSITION]), int(cells[i, ROW])
+        if not (x0 <= x <= x1 and y0 <= y <= y1):
+            return f"hazards: via {k + 1} ({x}, {y}) lies outside via_area ({x0}, {y0})..({x1}, {y1})"
     return None
 
 
@@ -471,34 +540,41 @@ def placement_reason(layout: HazardLayout, posts: np.ndarray, boxes: np.ndarray,
 # --- search operators: kinds stay in their places ------------------------------------------------
 def mutate(G: np.ndarray, lengths: np.ndarray, rng: np.random.Generator, config: Any) -> None:
     """One change per genome, in place: re-draw one attribute its element uses (a wall's type
-    between the two wall types, a hazard's among the three hazards; the start or goal one cell
-    within its area), or add or drop a hazard."""
+    between the two wall types, a hazard's among the three hazards; the start, goal or a via one
+    cell within its area), or add or drop a hazard; with ``max_vias``, also add, drop or swap vias
+    (rolls a config without vias never makes: its genomes mutate as they always did)."""
     max_hazards = int(config.max_hazards)
+    vias_on = bool(int(getattr(config, "max_vias", 0)))
     for i in range(len(G)):
         m = int(lengths[i])
+        tail = np.rint(G[i, FIRST_HAZARD:m, TYPE]).astype(int) == VIA
+        n_hazards = int((~tail).sum())
         roll = rng.random()
-        if roll < 0.1 and m < FIRST_HAZARD + max_hazards:  # a new hazard, uniform
+        if roll < 0.1 and n_hazards < max_hazards:  # a new hazard, uniform
             G[i, m] = 0.0
             G[i, m, TYPE] = rng.choice(HAZARD_KINDS)
             for j in (ALONG, OFFSET, HEADING, EXTENT, SPEED, DELAY):
                 G[i, m, j] = ATTRIBUTES[j].sample(rng, 1)[0]
             lengths[i] = m + 1
             continue
-        if roll < 0.2 and m > FIRST_HAZARD:  # drop one hazard
-            k = int(rng.integers(FIRST_HAZARD, m))
-            G[i, k:m - 1] = G[i, k + 1:m].copy()
-            G[i, m - 1] = 0.0
+        if roll < 0.2 and n_hazards:  # drop one hazard
+            k = int(rng.integers(FIRST_HAZARD, m)) if not tail.any() else \
+                FIRST_HAZARD + int(rng.choice(np.flatnonzero(~tail)))
+            _drop_row(G[i], k, m)
             lengths[i] = m - 1
+            continue
+        if vias_on and 0.2 <= roll < 0.35 and _move_vias(G[i], lengths, i, roll, rng, config):
             continue
         e = int(rng.integers(0, m))
         kind = int(round(G[i, e, TYPE]))
-        choices = list(USED[kind]) + ([TYPE] if kind not in (START, GOAL) else [])
+        choices = list(USED[kind]) + ([TYPE] if kind not in (START, GOAL, VIA) else [])
         j = int(rng.choice(choices))
         if j == TYPE:
             pool = (HORIZONTAL, VERTICAL) if kind in (HORIZONTAL, VERTICAL) else HAZARD_KINDS
             G[i, e, TYPE] = rng.choice([k for k in pool if k != kind])
-        elif kind in (START, GOAL) and j in (POSITION, ROW):
-            (x0, y0), (x1, y1) = area_of(config, "start_area" if kind == START else "goal_area")
+        elif kind in (START, GOAL, VIA) and j in (POSITION, ROW):
+            area = {START: "start_area", GOAL: "goal_area", VIA: "via_area"}[kind]
+            (x0, y0), (x1, y1) = area_of(config, area)
             lo, hi = (x0, x1) if j == POSITION else (y0, y1)
             G[i, e, j] = float(rng.integers(lo, hi + 1))
         else:
@@ -510,7 +586,41 @@ def mutate(G: np.ndarray, lengths: np.ndarray, rng: np.random.Generator, config:
             G[i, e, j] = new
 
 
+def _drop_row(cells: np.ndarray, k: int, m: int) -> None:
+    """Row ``k`` of a genome of ``m`` rows taken out, the rows after it moved up."""
+    cells[k:m - 1] = cells[k + 1:m].copy()
+    cells[m - 1] = 0.0
+
+
+def _move_vias(cells: np.ndarray, lengths: np.ndarray, i: int, roll: float, rng: np.random.Generator,
+               config: Any) -> bool:
+    """``roll`` in [0.2, 0.25): a new via (uniform in ``via_area``) at a random place among them;
+    [0.25, 0.3): one via dropped; [0.3, 0.35): two neighbouring vias swapped (the order flown
+    changes). False when the counts allow none of that: the caller re-draws an attribute."""
+    m = int(lengths[i])
+    vias = FIRST_HAZARD + np.flatnonzero(np.rint(cells[FIRST_HAZARD:m, TYPE]).astype(int) == VIA)
+    if roll < 0.25 and len(vias) < int(config.max_vias):
+        at = int(rng.integers(FIRST_HAZARD, m + 1))
+        cells[at + 1:m + 1] = cells[at:m].copy()
+        (x0, y0), (x1, y1) = area_of(config, "via_area")
+        cells[at] = 0.0
+        cells[at, TYPE], cells[at, POSITION], cells[at, ROW] = VIA, rng.integers(x0, x1 + 1), rng.integers(y0, y1 + 1)
+        cells[at, HEADING] = ATTRIBUTES[HEADING].sample(rng, 1)[0]
+        lengths[i] = m + 1
+        return True
+    if 0.25 <= roll < 0.3 and len(vias) > int(getattr(config, "min_vias", 0)):
+        _drop_row(cells, int(rng.choice(vias)), m)
+        lengths[i] = m - 1
+        return True
+    if roll >= 0.3 and len(vias) >= 2:
+        k = int(rng.integers(0, len(vias) - 1))
+        a, b = vias[k], vias[k + 1]
+        cells[[a, b]] = cells[[b, a]]
+        return True
+    return False
+
+
 __all__ = ["ATTRIBUTES", "BOX", "FIRST_HAZARD", "GOAL", "GOAL_ROW", "HAZARD_KINDS", "HazardLayout", "HazardSettings",
-           "N_WALLS", "PERSON", "POST", "PlacementRoute", "START", "START_ROW", "TYPES", "area_of", "areas_mask",
+           "N_WALLS", "PERSON", "POST", "PlacementRoute", "START", "START_ROW", "TYPES", "VIA", "area_of", "areas_mask",
            "canonical", "decode", "features", "kind_reason", "mutate", "obstacles_on",
-           "free_reach", "placement_reason", "sample", "wall_distance"]
+           "free_reach", "placement_reason", "sample", "via_rows", "wall_distance"]

@@ -4,6 +4,8 @@ in its kind."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -268,3 +270,119 @@ def test_walls_may_lie_over_the_start_and_goal_areas_only_when_the_config_says_s
     ends = [over.environment(sc) for sc in over.codec.from_rows(over.codec.join(G, lengths))]
     on_a_wall = sum(bool(e.grid[e.start[1], e.start[0]] or e.grid[e.goal[1], e.goal[0]]) for e in ends)
     assert on_a_wall > 0  # a start or goal on a wall: a scenario the reference refuses, as it should
+
+
+# --- vias (issue 68: Nav2's ComputePathThroughPoses) -----------------------------------------------------
+
+
+REPO_CONFIG = Path(__file__).resolve().parents[2] / "config"
+
+
+def vias_problem(**extra):
+    """config/robot_planner_vias.yaml's problem (1 to 3 vias), with ``extra`` fields."""
+    from ambiegen_ros.run_config import make_run
+
+    problem, _ = make_run("robot", str(REPO_CONFIG / "robot_planner_vias.yaml"), seed=0)
+    return get_problem("robot", {**problem.config_dict(), **extra}) if extra else problem
+
+
+def test_configs_without_vias_sample_and_mutate_the_genomes_they_always_did():
+    """The digests were taken before vias existed: a seeded sample and one mutation of each config
+    give the same genome bytes, and the kinds' codes 0..6 kept their meaning (old files decode)."""
+    import hashlib
+
+    from ambiegen_ros.run_config import make_run
+
+    assert hz.TYPES[:7] == ("horizontal", "vertical", "start", "goal", "box", "post", "person") and hz.VIA == 7
+    for name, digest in (("robot_planner.yaml", "fe988f2f272f2a40"), ("robot_hazards.yaml", "df291899cc88d37f")):
+        problem, _ = make_run("robot", str(REPO_CONFIG / name), seed=0)
+        G, lengths = problem.sample(50, np.random.default_rng(1))
+        hz.mutate(G, lengths, np.random.default_rng(2), problem.config)
+        assert hashlib.sha256(problem.codec.join(G, lengths).tobytes()).hexdigest()[:16] == digest, name
+
+
+def test_seeded_vias_lie_in_their_area_in_order_and_every_leg_needs_a_route():
+    from ambiegen_ros.problems.robot.problem import legs_length
+
+    problem = vias_problem(via_area=[[10, 10], [20, 20]])
+    G, lengths = problem.sample(300, np.random.default_rng(5))
+    counts = lengths - hz.FIRST_HAZARD
+    assert set(counts.tolist()) == {1, 2, 3} and problem.codec.m_max == hz.FIRST_HAZARD + 3
+    for i in range(len(G)):
+        assert hz.kind_reason(G[i], int(lengths[i]), problem.config) is None
+        rows = hz.via_rows(G[i], int(lengths[i]))
+        assert rows == list(range(hz.FIRST_HAZARD, int(lengths[i])))  # sampled: the vias right after the goal
+        assert all(10 <= G[i, r, hz.POSITION] <= 20 and 10 <= G[i, r, hz.ROW] <= 20 for r in rows)
+    ev = problem.evaluate(G, lengths)
+    _, planning = problem.planning_grids(G, lengths)
+    for i in range(len(G)):
+        layout = hz.decode(G[i], int(lengths[i]), hz.HazardSettings.of(problem.config))
+        legs, why = legs_length(planning[i], layout, problem.config.diagonal)
+        assert ev.valid[i] == (why is None), (ev.reasons[i], why)
+        if ev.valid[i]:  # F1: the route start -> vias -> goal, leg by leg
+            assert ev.f1[i] == pytest.approx(legs * problem.config.resolution)
+    leg_reasons = {r for r in ev.reasons if r and "via" in r}
+    assert leg_reasons  # a via on a wall or boxed in: that leg has no route, the scenario is never sent
+    sc = problem.codec.from_rows(problem.codec.join(G[:1], lengths[:1]))[0]
+    env = problem.environment(sc)
+    first = sc.to_dict()["elements"][hz.FIRST_HAZARD]
+    assert first["type"] == "via" and env.vias[0] == (first["position"], first["row"])
+    assert env.via_poses[0] == pytest.approx(((first["position"] + 0.5) * 0.25, (first["row"] + 0.5) * 0.25,
+                                              math.radians(first["heading"])))  # a cell's centre, as the start's
+
+
+def test_a_via_out_of_place_or_one_too_many_is_invalid():
+    problem = vias_problem(via_area=[[10, 10], [20, 20]])
+    G, lengths = problem.sample(1, np.random.default_rng(1))
+    cells, m = G[0].copy(), int(lengths[0])
+    cells[hz.FIRST_HAZARD, hz.POSITION] = 30
+    assert "via 1 (30, " in hz.kind_reason(cells, m, problem.config)
+    full = np.vstack([G[0, :hz.FIRST_HAZARD]] + [G[0, hz.FIRST_HAZARD:hz.FIRST_HAZARD + 1]] * 5)
+    assert hz.kind_reason(full, len(full), problem.config) == "hazards: 5 vias, need 1..3 (min_vias..max_vias)"
+    assert hz.kind_reason(G[0], hz.FIRST_HAZARD, problem.config) == "hazards: 0 vias, need 1..3 (min_vias..max_vias)"
+    plain = get_problem("robot", {**problem.config_dict(), "min_vias": 0, "max_vias": 0, "max_hazards": 3})
+    assert hz.kind_reason(G[0], m, plain.config).endswith("must be a box, post or person, not via")
+    with pytest.raises(ScenarioError, match="max_vias"):
+        get_problem("robot", {**problem.config_dict(), "min_vias": 4})
+
+
+def test_the_operators_keep_vias_vias_and_their_order_and_canonical_puts_them_first():
+    """Mutation adds, drops, swaps and moves vias within their area; the one-point crossover swaps
+    tails, so with hazards too a via may land among them: canonical moves it before them, its order
+    kept. With vias alone (the planner config) every child of both operators is a legal scenario."""
+    from ambiegen_ros.core.operators import OnePointCrossover
+
+    problem = vias_problem()
+    G, lengths = problem.sample(200, np.random.default_rng(2))
+    for seed in range(20):
+        hz.mutate(G, lengths, np.random.default_rng(seed), problem.config)
+        G, lengths = problem.canonical(G, lengths)
+        assert all(hz.kind_reason(G[i], int(lengths[i]), problem.config) is None for i in range(len(G)))
+    assert set((lengths - hz.FIRST_HAZARD).tolist()) == {1, 2, 3}
+    pymoo_problem = SimpleNamespace(case=problem)
+    X = problem.codec.join(G, lengths)
+    parents = np.stack([X[:100], X[100:]])
+    children = OnePointCrossover()._do(pymoo_problem, parents, random_state=np.random.default_rng(0))
+    for row in children.reshape(-1, X.shape[1]):
+        Gc, lc = problem.codec.split(row[None])
+        assert hz.kind_reason(Gc[0], int(lc[0]), problem.config) is None
+    mixed = vias_problem(max_hazards=3)
+    cells = np.zeros((1, mixed.codec.m_max, len(hz.ATTRIBUTES)))
+    cells[0, :hz.FIRST_HAZARD] = G[0, :hz.FIRST_HAZARD]
+    order = [(hz.BOX, 0), (hz.VIA, 11), (hz.POST, 0), (hz.VIA, 22)]
+    for k, (kind, x) in enumerate(order):
+        cells[0, hz.FIRST_HAZARD + k, hz.TYPE] = kind
+        cells[0, hz.FIRST_HAZARD + k, [hz.POSITION, hz.ROW]] = x or 1
+    C, lc = mixed.canonical(cells, np.array([hz.FIRST_HAZARD + 4]))
+    tail = C[0, hz.FIRST_HAZARD:hz.FIRST_HAZARD + 4]
+    assert tail[:, hz.TYPE].tolist() == [hz.VIA, hz.VIA, hz.BOX, hz.POST]
+    assert tail[:2, hz.POSITION].tolist() == [11, 22]
+    assert hz.kind_reason(cells[0], hz.FIRST_HAZARD + 4, mixed.config) is None  # where hazards stand is free
+
+
+def test_a_search_on_the_vias_config_sends_only_scenarios_with_vias():
+    problem = vias_problem()
+    result = Search(problem, SearchSettings(algorithm="ga", evaluations=80, population=20, offspring=10, seed=4)).run()
+    for entry in result.suite:
+        kinds = [e["type"] for e in entry["scenario"]["elements"][hz.FIRST_HAZARD:]]
+        assert 1 <= len(kinds) <= 3 and set(kinds) == {"via"}

@@ -63,6 +63,11 @@ class RobotConfig:
     start_area: tuple | None = None  # hazards: ((x0, y0), (x1, y1)) cells the start lies in; None = start +- 2
     goal_area: tuple | None = None  # hazards: the goal's area; None = goal +- 2 cells
     max_hazards: int = 6  # hazards: boxes, posts and people per scenario, at most
+    # hazards: vias a planner is asked to pass through, in order (Nav2's ComputePathThroughPoses), at
+    # least and at most; 0..0 (the default) = none, and every config without them samples as before
+    min_vias: int = 0
+    max_vias: int = 0
+    via_area: tuple | None = None  # hazards: the vias' area; None = the room inside its border
     box_side: tuple = (0.3, 1.0)  # hazards: a box's side [m], min and max
     post_diameter: tuple = (0.05, 0.2)  # hazards: a thin post's diameter [m]
     person_radius: tuple = (0.2, 0.35)  # hazards: a person's radius [m]
@@ -125,7 +130,12 @@ class RobotConfig:
             raise ScenarioError("config.scenario", "hazards scenarios need the refined profile", "profile: refined")
         if not 0 <= int(self.max_hazards) <= 20:
             raise ScenarioError("config.max_hazards", f"{self.max_hazards}", "0..20")
-        for name in ("start_area", "goal_area"):
+        if not 0 <= int(self.min_vias) <= int(self.max_vias) <= 10:
+            raise ScenarioError("config.max_vias", f"min_vias {self.min_vias}, max_vias {self.max_vias}",
+                                "0 <= min_vias <= max_vias <= 10")
+        object.__setattr__(self, "min_vias", int(self.min_vias))
+        object.__setattr__(self, "max_vias", int(self.max_vias))
+        for name in ("start_area", "goal_area", "via_area"):
             value = getattr(self, name)
             if value is None:
                 continue

@@ -44,6 +44,9 @@ class RobotMap:
     start_yaw: float | None = None
     goal_yaw: float | None = None
     unmapped: dict = field(default_factory=dict)
+    # vias (a planner's ComputePathThroughPoses): cells in the order flown through, and their yaw [rad]
+    vias: list[tuple[int, int]] = field(default_factory=list)
+    via_yaws: list[float] = field(default_factory=list)
 
     def to_metres(self, cell: Sequence[int]) -> tuple[float, float]:
         return ((cell[0] + 0.5) * self.resolution, (cell[1] + 0.5) * self.resolution)
@@ -51,6 +54,11 @@ class RobotMap:
     @property
     def path_m(self) -> list[tuple[float, float]]:
         return [self.to_metres(c) for c in self.path]
+
+    @property
+    def via_poses(self) -> list[tuple[float, float, float]]:
+        """The vias as (x, y, yaw) in metres, each cell's centre as for the start and goal."""
+        return [(*self.to_metres(c), yaw) for c, yaw in zip(self.vias, self.via_yaws)]
 
 
 CLEARED = "cleared_cells"  # a scenario's metadata key: map cells made free (a shrunk finding's)
@@ -130,7 +138,7 @@ class RobotProblem(Problem):
         if self.config.scenario == "hazards":
             from ..robot_hazards import ATTRIBUTES, FIRST_HAZARD
 
-            return ATTRIBUTES, FIRST_HAZARD, FIRST_HAZARD + int(self.config.max_hazards)
+            return ATTRIBUTES, FIRST_HAZARD, FIRST_HAZARD + int(self.config.max_hazards) + int(self.config.max_vias)
         return REFINED_LAYOUT if self.profile == "refined" else REPLICATION_LAYOUT
 
     @property
@@ -299,7 +307,10 @@ class RobotProblem(Problem):
     def _evaluate_hazards(self, G: np.ndarray, lengths: np.ndarray) -> Evaluation:
         """The kinds in their places, a route on the mapped walls (F1: its length, the paper's
         objective), hazards clear of the start and goal, people with room to walk. Metrics count
-        the hazards by kind."""
+        the hazards by kind. With vias every leg (start -> via 1 -> ... -> goal) needs a route on
+        the planning grid (``robot_radius``: permissive in the planner configs), else the scenario
+        is invalid and never sent; F1 is then the legs' length together, and hazards still sit on
+        the start -> goal route."""
         from .. import robot_hazards as hz
 
         cfg = self.config
@@ -317,14 +328,15 @@ class RobotProblem(Problem):
             if reason is None:
                 layout = hz.decode(G[i], m, settings)
                 length, path = astar(planning[i], layout.start, layout.goal, cfg.diagonal)
+                legs, reason = legs_length(planning[i], layout, cfg.diagonal) if layout.vias else (length, None)
                 if not math.isfinite(length):
                     reason = NO_PATH
-                else:
+                elif reason is None:
                     route = hz.PlacementRoute((np.asarray(path, dtype=float) + 0.5) * cfg.resolution)
                     posts, boxes, people = hz.obstacles_on(route, layout, settings, grids[i], cfg.resolution)
                     reason = hz.placement_reason(layout, posts, boxes, people, settings, cfg.resolution)
                     counts["boxes"][i], counts["posts"][i], counts["people"][i] = len(boxes), len(posts), len(people)
-                    f1[i] = route_m[i] = length * cfg.resolution
+                    f1[i] = route_m[i] = legs * cfg.resolution
                     if cfg.objective in HAZARD_OBJECTIVES and reason is None:
                         f1[i] = hz.features(route, layout, posts, boxes, people, grids[i], cfg.resolution,
                                             cfg.threat_speed)[cfg.objective]
@@ -348,7 +360,7 @@ class RobotProblem(Problem):
         layout = hz.decode(cells, length, settings)
         res = cfg.resolution
         out = RobotMap(grids[0], res, layout.start, layout.goal, (0.0, 0.0), (0.0, 0.0),
-                       start_yaw=layout.start_yaw, goal_yaw=layout.goal_yaw)
+                       start_yaw=layout.start_yaw, goal_yaw=layout.goal_yaw, vias=layout.vias, via_yaws=layout.via_yaws)
         out.start_m, out.goal_m = out.to_metres(layout.start), out.to_metres(layout.goal)
         route_len, path = astar(planning[0], layout.start, layout.goal, cfg.diagonal)
         if math.isfinite(route_len):
@@ -372,6 +384,20 @@ class RobotProblem(Problem):
         return hz.features(hz.PlacementRoute(np.asarray(env.path_m)), layout, np.asarray(u["posts"]).reshape(-1, 3),
                            np.asarray(u["boxes"]).reshape(-1, 4), u["people"], env.grid, env.resolution,
                            self.config.threat_speed if speed is None else speed)
+
+
+def legs_length(planning: np.ndarray, layout: Any, diagonal: str) -> tuple[float, str | None]:
+    """The A* length (cells) of start -> via 1 -> ... -> goal, leg by leg, and why not (the first
+    leg without a route) or None."""
+    ends = [layout.start, *layout.vias, layout.goal]
+    names = ["the start"] + [f"via {k + 1}" for k in range(len(layout.vias))] + ["the goal"]
+    total = 0.0
+    for k, (a, b) in enumerate(zip(ends, ends[1:])):
+        length, _ = astar(planning, a, b, diagonal)
+        if not math.isfinite(length):
+            return math.inf, f"no path from {names[k]} to {names[k + 1]}"
+        total += length
+    return total, None
 
 
 PLAN_CLEARANCE_SCALE_M = 0.2  # a path this close to a lethal cell's centre scores 1/e of a touching one
