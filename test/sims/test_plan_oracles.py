@@ -517,3 +517,103 @@ def test_jazzys_smac_2d_path_on_cell_corners_holds():
     checker = O.CollisionChecker(cm, P.smac_2d())
     grazing = [i for i, pose in enumerate(path) if checker._disc_hits(pose[0], pose[1])]
     assert grazing and all(not checker.in_inscribed_cells(*path[i, :2]) for i in grazing)
+
+
+# --- through poses (ComputePathThroughPoses) ------------------------------------------------------------------
+
+
+def joined(*legs: np.ndarray) -> np.ndarray:
+    """Legs joined as Jazzy's planner_server joins them: each later leg's first pose dropped."""
+    return np.vstack([legs[0]] + [leg[1:] for leg in legs[1:]])
+
+
+def test_a_path_through_every_via_in_order_holds_and_one_that_skips_or_reorders_them_misses_a_via():
+    cm = C.costmap_from_occupancy(blank())
+    start, a, b, goal = centre(5, 5), centre(50, 10), centre(50, 50), centre(5, 50)
+    through = joined(line(start, a), line(a, b), line(b, goal))
+    assert not O.judge_plan(cm, P.smac_2d(), start, goal, path=through, vias=[a, b]).failed
+    skipped = O.judge_plan(cm, P.smac_2d(), start, goal, path=joined(line(start, a), line(a, goal)), vias=[a, b])
+    assert [f.kind for f in skipped.failures] == ["missed_via"] and "via 2" in skipped.verdict.detail
+    assert skipped.verdict.cell == cm.world_to_map(*b)  # the failure point is the via it missed
+    backwards = joined(line(start, b), line(b, a), line(a, goal))  # b before a: a is met, b never after it
+    assert O.judge_plan(cm, P.smac_2d(), start, goal, path=backwards, vias=[a, b]).verdict.kind == "missed_via"
+    # the same poses asked without vias: nothing to miss
+    assert not O.judge_plan(cm, P.smac_2d(), start, goal, path=joined(line(start, a), line(a, goal))).failed
+
+
+def test_a_leg_may_end_anywhere_in_the_vias_tolerance_and_the_next_leg_starts_there():
+    """Jazzy plans leg 2 from the end of leg 1 ("to allow for path tolerance deviations"): NavFn's
+    0.5 m square lets leg 1 stop 0.4 m short of the via; Smac 2D's 0.125 m does not."""
+    cm = C.costmap_from_occupancy(blank())
+    start, via, goal = centre(5, 30), centre(30, 30), centre(30, 55)
+    short = (via[0] - 0.4, via[1])
+    path = joined(line(start, short), line(short, goal))
+    assert not O.judge_plan(cm, P.navfn(), start, goal, path=path, vias=[via]).failed
+    assert O.judge_plan(cm, P.smac_2d(), start, goal, path=path, vias=[via]).verdict.kind == "missed_via"
+
+
+def test_a_jump_between_poses_is_a_path_gap_and_a_planners_own_steps_are_not():
+    """Leg 2 starting at the via rather than where leg 1 ended jumps 0.4 m: no planner steps that far
+    (two diagonal cells, 0.141 m at 0.05 m cells, plus R times Hybrid's angle bin when it turns)."""
+    cm = C.costmap_from_occupancy(blank())
+    start, via, goal = centre(5, 30), centre(30, 30), centre(30, 55)
+    short = (via[0] - 0.4, via[1])
+    jumped = joined(line(start, short), line(via, goal))
+    v = O.judge_plan(cm, P.navfn(), start, goal, path=np.vstack([line(start, short), line(via, goal)]), vias=[via])
+    assert [f.kind for f in v.failures] == ["path_gap"] and "0.400 m apart" in v.verdict.detail
+    assert O.judge_plan(cm, P.navfn(), start, goal, path=jumped, vias=[via]).verdict.kind == "path_gap"
+    coarse = joined(line(start, via, step=0.12), line(via, goal, step=0.12))  # 0.125 m: under 2 sqrt 2 cells
+    assert not O.judge_plan(cm, P.navfn(), start, goal, path=coarse, vias=[via]).failed
+    sparse = joined(line(start, via, step=0.15), line(via, goal, step=0.15))  # 0.156 m
+    assert O.judge_plan(cm, P.navfn(), start, goal, path=sparse, vias=[via]).verdict.kind == "path_gap"
+    hybrid = P.smac_hybrid(minimum_turning_radius=2.0)  # chords of 2 R sin(bin / 2) = 0.17 m are its own steps
+    assert O.check_gaps(cm, sparse, hybrid) is None and O.max_step(hybrid, RES) > 0.17
+
+
+def test_a_refusal_through_poses_is_a_finding_when_the_reference_passes_every_leg():
+    """The U map, a via at the foot of the U: the reference plans leg by leg, each leg from where the
+    last ended; the legs joined are the certificate, and they pass our own through-poses oracles."""
+    cm = C.costmap_from_occupancy(u_map())
+    start, via, goal = centre(12, 90), centre(50, 12), centre(88, 90)
+    v = O.judge_failure(cm, P.navfn(), start, goal, "error 308", vias=[via])
+    assert v.kind == "missed_path" and v.failed and "through 1 via" in v.detail
+    cert = v.evidence
+    assert len(cert.legs) == 2 and sum(cert.legs) - 1 == len(cert.cells) and cert.to_dict()["legs"] == cert.legs
+    joint = cert.cells[cert.legs[0] - 1]  # leg 1's last cell is leg 2's first
+    assert np.abs(np.asarray(cm.map_to_world(*joint)) - via).max() <= 0.5  # inside NavFn's square
+    assert not O.judge_plan(cm, P.navfn(), start, goal, path=cert.poses, vias=[via]).failed
+    # the one-goal certificate passes the U's foot but never goes back up the left arm after it
+    off = centre(12, 50)
+    direct = R.reference_plan(cm, P.smac_2d(), start, goal)
+    assert O.judge_plan(cm, P.smac_2d(), start, goal, path=direct.poses, vias=[via, off]).verdict.kind == "missed_via"
+
+
+def test_a_leg_starts_where_the_reference_ended_not_at_the_via():
+    """A via on a lethal cell with free cells inside NavFn's 0.5 m square: leg 1 ends beside it and
+    leg 2 starts from that cell; with Smac 2D's 0.125 m no cell of the tolerance is free: proved
+    absent, the refusal right, and its detail names the leg."""
+    occ = blank()
+    occ[28:33, 28:33] = 100  # a pillar of 5 x 5 cells under the via
+    cm = C.costmap_from_occupancy(occ)
+    start, via, goal = centre(5, 30), centre(30, 30), centre(55, 30)
+    cert = R.reference_through(cm, P.navfn(), start, [via], goal)
+    assert cert.found, cert.detail
+    joint = tuple(cert.cells[cert.legs[0] - 1])
+    assert joint != cm.world_to_map(*via) and cm.cost[joint[1], joint[0]] < INSCRIBED
+    proved = O.judge_failure(cm, P.smac_2d(), start, goal, "error 306", vias=[via])
+    assert proved.kind == "correct_refusal" and not proved.failed
+    assert proved.detail.startswith("no path exists: leg 1 (the start -> via 1)")
+
+
+def test_an_unreachable_via_makes_the_refusal_right_and_a_via_off_the_map_any_error():
+    occ = blank()
+    occ[35:50, 35] = occ[35:50, 49] = occ[35, 35:50] = occ[49, 35:50] = 100  # a walled room
+    cm = C.costmap_from_occupancy(occ)
+    start, goal = centre(5, 5), centre(20, 50)
+    v = O.judge_failure(cm, P.smac_2d(), start, goal, "error 308", vias=[centre(20, 20), centre(42, 42)])
+    assert v.kind == "correct_refusal" and not v.failed and "leg 2 (via 1 -> via 2)" in v.detail
+    assert v.evidence.legs == [v.evidence.legs[0]] and v.evidence.legs[0] > 1  # leg 1 was found
+    off = O.judge_failure(cm, P.navfn(), start, goal, "error 304", vias=[(60 * RES + 0.01, 1.0)])
+    assert off.kind == "goal_outside_map" and not off.failed
+    judged = O.judge_plan(cm, P.navfn(), start, goal, path=line(start, goal), vias=[(60 * RES + 0.01, 1.0)])
+    assert "goal_outside_map" in [n.kind for n in judged.notes]

@@ -56,9 +56,19 @@ Lattice a 2D reference path is a hint, not a certificate. A crash or hang is ``s
 the server's stack trace; planning time over ``max_planning_time`` is a performance note, never a
 failure.
 
+**Through poses** (``vias``: Nav2's ``ComputePathThroughPoses``). Jazzy's ``planner_server``
+(``PlannerServer::computePlanThroughPoses``) plans leg i from the *end pose* of the path so far to
+via i ("to allow for path tolerance deviations") and joins the legs, dropping each later leg's
+first pose. So such a path must start at the start and end at the goal (``check_endpoints``), come
+within the tolerance of each via in order (``check_vias``: ``missed_via``, the same slack as the
+goal's) and hold together (``check_gaps``: ``path_gap``, no step longer than ``max_step``). Every
+other path oracle judges the whole joined path. A refusal is a finding only against
+``reference.reference_through`` (leg by leg, with Jazzy's semantics); a via outside the map makes
+any error right, as the goal does.
+
 ``judge_plan`` runs them in this order and returns every failure, the first one as the verdict:
-crash; error (failure oracle); start or goal outside the map (notes); empty path; endpoints;
-collision; unknown space; reversal; turning radius; smoother; then the performance note.
+crash; error (failure oracle); start, goal or a via outside the map (notes); empty path; endpoints;
+vias; gaps; collision; unknown space; reversal; turning radius; smoother; then the performance note.
 """
 from __future__ import annotations
 
@@ -71,11 +81,11 @@ import shapely
 from scipy.spatial import cKDTree
 
 from .costmap import INSCRIBED, LETHAL, NO_INFORMATION, Costmap, footprint_from_radius, inscribed_radius
-from .reference import ReferenceResult, reference_plan
+from .reference import ReferenceResult, reference_plan, reference_through
 from .rules import PlannerRules
 
 FAILURES = ("sut_crashed", "missed_path", "empty_path", "off_start", "off_goal", "collision",
-            "unknown_space", "reversal", "tight_turn", "smoother_collision")
+            "unknown_space", "reversal", "tight_turn", "smoother_collision", "missed_via", "path_gap")
 NOTES = ("pass", "performance", "goal_outside_map", "start_outside_map", "start_blocked",
          "correct_refusal", "undecided", "kinematic_hint")
 
@@ -304,6 +314,68 @@ def check_endpoints(costmap: Costmap, poses: np.ndarray, start: Sequence[float],
     return None
 
 
+def check_vias(costmap: Costmap, poses: np.ndarray, vias: Sequence[Sequence[float]],
+               rules: PlannerRules) -> Optional[PlanVerdict]:
+    """``missed_via``: the first via the path does not come within ``tolerance`` + one cell of (as
+    the goal: per axis for NavFn) after it came within that of the via before. A leg of Jazzy's
+    ends inside its via's tolerance and the next starts there, so such a pose exists, in order."""
+    allowed = rules.tolerance + costmap.resolution
+    at = 0
+    for k, via in enumerate(vias):
+        rest = poses[at:, :2]
+        if rules.tolerance_metric == "square":
+            d = np.max(np.abs(rest - np.asarray(via[:2], dtype=float)), axis=1)
+        else:
+            d = np.hypot(*(rest - np.asarray(via[:2], dtype=float)).T)
+        hits = np.flatnonzero(d <= allowed)
+        if len(hits):
+            at += int(hits[0])
+            continue
+        near = at + int(np.argmin(d))  # a pose exists: the caller judged the ends of a path of poses
+        after = "the start" if k == 0 else f"pose {at} (near via {k})"
+        how = "per axis" if rules.tolerance_metric == "square" else "away"
+        return PlanVerdict("missed_via", f"the path never comes within {allowed:.3f} m {how} of via {k + 1} at "
+                           f"({via[0]:.3f}, {via[1]:.3f}) after {after}: at best {float(d.min()):.3f} m, pose {near} "
+                           f"(tolerance {rules.tolerance} m + one cell)", near,
+                           costmap.world_to_map(float(via[0]), float(via[1])))
+    return None
+
+
+HYBRID_BIN = 2.0 * math.pi / 72  # Smac Hybrid-A*'s default angle_quantization_bins: its primitives turn by multiples
+
+
+def max_step(rules: PlannerRules, resolution: float) -> float:
+    """The longest step between two poses of one planner's path, and of a join of two legs [m].
+
+    Two diagonal cells (2 sqrt 2 cells): NavFn follows its gradient half a cell at a time, or the
+    grid a cell (at most sqrt 2) at a time, and a leg's second pose lies within 0.71 + 1.41 cells of
+    the end pose it starts from (``worldToMap`` rounds it to a corner); Theta*'s interpolation
+    (``linearInterpolation``) leaves under 2 cells before each vertex; Smac 2D steps to a
+    neighbouring cell, and Smac's analytic expansions are cut into pieces under 2 sqrt 2 cells. A
+    Hybrid-A* primitive is a chord 2 R sin(a / 2) with a the first multiple of the angle bin whose
+    chord passes sqrt 2 cells (``HybridMotionTable::initDubin``): under sqrt 2 cells + R times a bin."""
+    step = 2.0 * math.sqrt(2.0) * resolution
+    if rules.min_turning_radius is not None:
+        step += rules.min_turning_radius * HYBRID_BIN
+    return step
+
+
+def check_gaps(costmap: Costmap, poses: np.ndarray, rules: PlannerRules) -> Optional[PlanVerdict]:
+    """``path_gap``: the first step between consecutive poses longer than ``max_step``: a jump no
+    leg of the planner makes (a join that did not start where the last leg ended, poses lost)."""
+    if len(poses) < 2:
+        return None
+    steps = np.hypot(*np.diff(poses[:, :2], axis=0).T)
+    bound = max_step(rules, costmap.resolution)
+    bad = np.flatnonzero(steps > bound)
+    if not len(bad):
+        return None
+    i = int(bad[0])
+    return PlanVerdict("path_gap", f"poses {i} and {i + 1} lie {steps[i]:.3f} m apart, more than {rules.name} steps "
+                       f"({bound:.3f} m) from ({poses[i, 0]:.3f}, {poses[i, 1]:.3f}) to ({poses[i + 1, 0]:.3f}, "
+                       f"{poses[i + 1, 1]:.3f})", i, costmap.world_to_map(poses[i, 0], poses[i, 1]))
+
+
 # --- kinematics (Hybrid-A*, Lattice) --------------------------------------------------------------------
 
 
@@ -404,8 +476,13 @@ def check_smoother(costmap: Costmap, before: np.ndarray, after: np.ndarray,
 
 
 def judge_failure(costmap: Costmap, rules: PlannerRules, start: Sequence[float], goal: Sequence[float],
-                  error: str, reference: Optional[ReferenceResult] = None) -> PlanVerdict:
-    """A planner's error (NO_VALID_PATH, a timeout, any error): a failure only against a certificate."""
+                  error: str, reference: Optional[ReferenceResult] = None,
+                  vias: Sequence[Sequence[float]] = ()) -> PlanVerdict:
+    """A planner's error (NO_VALID_PATH, a timeout, any error): a failure only against a certificate
+    (through ``vias``: the legs joined, ``reference_through``). Through poses Nav2 answers 303-306
+    where it answers 203-206 to one pose; here as there the reference, not the code, decides."""
+    if reference is None and vias:
+        reference = reference_through(costmap, rules, (start[0], start[1]), vias, (goal[0], goal[1]))
     ref = reference or reference_plan(costmap, rules, (start[0], start[1]), (goal[0], goal[1]))
     said = f"{rules.name} answered {error!r}"
     if ref.status == "goal_outside":
@@ -443,11 +520,13 @@ def check_time(seconds: float, rules: PlannerRules) -> Optional[PlanVerdict]:
 def judge_plan(costmap: Costmap, rules: PlannerRules, start: Sequence[float], goal: Sequence[float], *,
                path: Optional[Sequence[Sequence[float]]] = None, error: Optional[str] = None,
                crash: Optional[tuple[str, str]] = None, planning_time: Optional[float] = None,
-               smoothed: Optional[Sequence[Sequence[float]]] = None) -> PlanJudgement:
+               smoothed: Optional[Sequence[Sequence[float]]] = None,
+               vias: Sequence[Sequence[float]] = ()) -> PlanJudgement:
     """All the oracles on one answer, in the module docstring's order.
 
     ``path``: the planner's poses; ``error``: its error when it gave none; ``crash``: (server, stack
-    trace) of a dead or hung server; ``smoothed``: the smoother's output for ``path``.
+    trace) of a dead or hung server; ``smoothed``: the smoother's output for ``path``; ``vias``:
+    the poses the path was asked through, in order (ComputePathThroughPoses), () for one goal.
     """
     failures: list[PlanVerdict] = []
     notes: list[PlanVerdict] = []
@@ -460,9 +539,9 @@ def judge_plan(costmap: Costmap, rules: PlannerRules, start: Sequence[float], go
     if crash is not None:
         add(crashed(*crash))
     elif error is not None or path is None:
-        add(judge_failure(costmap, rules, start, goal, error or "no path"))
+        add(judge_failure(costmap, rules, start, goal, error or "no path", vias=vias))
     else:
-        skip = _judge_path(costmap, rules, start, goal, as_poses(path), failures, notes)
+        skip = _judge_path(costmap, rules, start, goal, as_poses(path), failures, notes, vias)
         if smoothed is not None:
             add(check_smoother(costmap, as_poses(path), as_poses(smoothed), rules))
     if planning_time is not None:
@@ -471,9 +550,14 @@ def judge_plan(costmap: Costmap, rules: PlannerRules, start: Sequence[float], go
 
 
 def _judge_path(costmap: Costmap, rules: PlannerRules, start: Sequence[float], goal: Sequence[float],
-                poses: np.ndarray, failures: list[PlanVerdict], notes: list[PlanVerdict]) -> int:
+                poses: np.ndarray, failures: list[PlanVerdict], notes: list[PlanVerdict],
+                vias: Sequence[Sequence[float]] = ()) -> int:
     """The path oracles, appending to ``failures`` and ``notes``; returns how many poses leaving a
     colliding start went unjudged."""
+    for k, via in enumerate(vias):
+        if costmap.world_to_map(*via[:2]) is None:
+            notes.append(PlanVerdict("goal_outside_map", f"via {k + 1} ({via[0]:.3f}, {via[1]:.3f}) is outside "
+                                     "the map"))
     if costmap.world_to_map(*goal[:2]) is None:
         notes.append(PlanVerdict("goal_outside_map", f"goal ({goal[0]:.3f}, {goal[1]:.3f}) is outside the map"))
     if costmap.world_to_map(*start[:2]) is None:
@@ -483,6 +567,10 @@ def _judge_path(costmap: Costmap, rules: PlannerRules, start: Sequence[float], g
         failures.append(ends)
     if not len(poses):
         return 0
+    if len(vias):
+        for v in (check_vias(costmap, poses, vias, rules), check_gaps(costmap, poses, rules)):
+            if v is not None:
+                failures.append(v)
     checker = CollisionChecker(costmap, rules)
     skip = leaving_start(checker, poses, start)
     if skip:

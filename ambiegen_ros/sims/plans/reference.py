@@ -17,6 +17,15 @@ module decides that, on the grid, with two move sets so that neither answer can 
 * between the two (a loose route exists, a strict one does not): ``undecided``; such a failure is
   reported as a hint, never a finding.
 
+**Through poses** (``reference_through``, Nav2's ``ComputePathThroughPoses``): leg by leg as
+Jazzy's ``planner_server`` plans them (``PlannerServer::computePlanThroughPoses``), each leg from
+where the previous one *ended* (a cell surely inside the via's tolerance), not from the via. The
+legs joined are the certificate. It holds wherever in the tolerance region the planner's own leg
+ended: that end is joined to the start by the planner's moves, which are symmetric and never fewer
+than the strict ones (NavFn's 4-connected potential has the strict moves' components), so the next
+leg exists from there too. A leg proved absent proves the whole question absent, by the same
+argument with the loose moves.
+
 A 2D reference path is a certificate only for planners that judge a pose by its centre cell (NavFn,
 Smac 2D, Theta*, and Hybrid/Lattice with a round robot *as far as collisions go*). For Smac
 Hybrid-A* and Lattice the path must also turn no tighter than the minimum radius (and, with a
@@ -33,7 +42,7 @@ from __future__ import annotations
 import heapq
 import math
 from dataclasses import dataclass, field
-from typing import Any, Optional
+from typing import Any, Optional, Sequence
 
 import numpy as np
 from scipy import ndimage
@@ -64,6 +73,7 @@ class ReferenceResult:
     length: float = 0.0  # metres, along the certificate
     component_cells: int = 0  # size of the start's (loose) component
     closest: float = math.inf  # metres from the goal to the nearest cell of that component
+    legs: list = field(default_factory=list)  # through poses: the cells of each leg found (the last may be missing)
 
     @property
     def found(self) -> bool:
@@ -71,10 +81,13 @@ class ReferenceResult:
 
     def to_dict(self) -> dict:
         """JSON-ready, for saving the certificate beside the run."""
-        return {"status": self.status, "detail": self.detail, "cells": self.cells.tolist(),
-                "poses": [[round(x, 4), round(y, 4)] for x, y in self.poses.tolist()],
-                "length": round(self.length, 4), "component_cells": self.component_cells,
-                "closest": None if math.isinf(self.closest) else round(self.closest, 4)}
+        out = {"status": self.status, "detail": self.detail, "cells": self.cells.tolist(),
+               "poses": [[round(x, 4), round(y, 4)] for x, y in self.poses.tolist()],
+               "length": round(self.length, 4), "component_cells": self.component_cells,
+               "closest": None if math.isinf(self.closest) else round(self.closest, 4)}
+        if self.legs:
+            out["legs"] = list(self.legs)
+        return out
 
 
 def goal_distance(costmap: Costmap, goal: tuple[float, float], metric: str) -> np.ndarray:
@@ -207,6 +220,31 @@ def reference_plan(costmap: Costmap, rules: PlannerRules, start: tuple[float, fl
                    goal: tuple[float, float]) -> ReferenceResult:
     """One question, one answer (``ReferenceGrid`` keeps the grid for many)."""
     return ReferenceGrid(costmap, rules).plan(start, goal)
+
+
+def reference_through(costmap: Costmap, rules: PlannerRules, start: tuple[float, float],
+                      vias: Sequence[Sequence[float]], goal: tuple[float, float]) -> ReferenceResult:
+    """Start -> vias -> goal leg by leg, each leg from where the last one ended (module docstring):
+    the joined certificate (``legs``: cells per leg), or the first leg's proof of absence, its
+    undecided answer or why it is void, its detail naming the leg."""
+    grid = ReferenceGrid(costmap, rules)
+    names = ["the start"] + [f"via {k + 1}" for k in range(len(vias))] + ["the goal"]
+    here, parts = (float(start[0]), float(start[1])), []
+    for k, target in enumerate([*vias, goal]):
+        leg = grid.plan(here, (float(target[0]), float(target[1])))
+        if not leg.found:
+            leg.detail = f"leg {k + 1} ({names[k]} -> {names[k + 1]}): {leg.detail}"
+            leg.legs = [len(p.cells) for p in parts]
+            return leg
+        parts.append(leg)
+        here = (float(leg.poses[-1, 0]), float(leg.poses[-1, 1]))  # the next leg starts where this one ended
+    cells = np.vstack([parts[0].cells] + [p.cells[1:] for p in parts[1:]])
+    poses = np.vstack([parts[0].poses] + [p.poses[1:] for p in parts[1:]])
+    length = sum(p.length for p in parts)
+    sizes = [len(p.cells) for p in parts]
+    return ReferenceResult("path", f"a path through {len(vias)} via(s), leg by leg ({' + '.join(map(str, sizes))} "
+                           f"cells, {length:.2f} m) to cell ({cells[-1, 0]}, {cells[-1, 1]})", cells, poses, length,
+                           parts[0].component_cells, parts[-1].closest, sizes)
 
 
 def certificate_image(costmap: Costmap, paths: Optional[list[np.ndarray]] = None) -> np.ndarray:
