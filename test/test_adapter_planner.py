@@ -9,6 +9,7 @@ question go, the matching one does, and the planner's answer (or its silence) en
 """
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 from types import SimpleNamespace
@@ -428,3 +429,63 @@ def test_a_finding_is_written_as_nav2s_maintainers_ask_for_one(tmp_path):
     small = write_finding([{**row, "scenario": shrunk}], "case", problem, params, 5, tmp_path / "small", "new", "", "")
     grid = read_pgm(small.parent / "case.pgm")
     assert grid.sum() == occupied.sum() - 25 and not grid[5 * ys[0]:5 * ys[0] + 5, 5 * xs[0]:5 * xs[0] + 5].any()
+
+
+# --- through poses (ComputePathThroughPoses) ----------------------------------------------------------
+def test_a_scenario_with_vias_asks_through_poses_and_the_path_is_judged_through_them(robot, monkeypatch):
+    """config/robot_planner_vias.yaml: the message carries map, start and goal; the vias come from the
+    scenario (its meta.scenario_json), at their cells' centres. The question goes to
+    compute_path_through_poses with the vias, then the goal, as goals; a path that skips the via is
+    a missed via, one through it holds."""
+    from ambiegen_ros.run_config import make_run
+    from hazards_cases import via_scenario
+
+    monkeypatch.setattr("test_adapter_judges.StandInNode", PlannerNode)
+    problem = make_run("robot", str(REPO / "config" / "robot_planner_vias.yaml"), seed=0)[0]
+    scenario = problem.parse(via_scenario())
+    judge, node, host = make_judge(PlannerRobot, problem, map_upsample=5, answer_timeout=5.0)
+    node.ns = 10
+    job = host.job = robot_job(judge, node, scenario)
+    assert not any(m for m in judge.missing() if "action is not up" in m)
+    judge.send_goal(job)
+    (grid,) = node.pubs["/map"].sent
+    judge.on_costmap(costmap_message(grid, 20))
+    view = RunView(0.0, None, False, lambda: False)
+    assert judge.step(job, view) == HOLD
+    assert not node.actions["compute_path_to_pose"].goals
+    (goal,) = node.actions["compute_path_through_poses"].goals
+    assert [(g.pose.position.x, g.pose.position.y) for g in goal.goals] == [(10.125, 1.625), (0.625, 10.125)]
+    assert goal.use_start and (goal.start.pose.position.x, goal.start.pose.position.y) == (0.625, 0.625)
+    assert {g.header.frame_id for g in goal.goals} == {"map"}
+    start, via, end = (0.625, 0.625), (10.125, 1.625), (0.625, 10.125)
+    dense = lambda a, b: line(a, b, int(math.dist(a, b) / 0.05) + 1)[:, :2]  # noqa: E731  (a planner's 5 cm steps)
+    answer_with(node.actions["compute_path_through_poses"], np.vstack([dense(start, via), dense(via, end)[1:]]))
+    assert judge.step(job, view) == DECIDED
+    out = job.judge.outcome()
+    assert out.verdict == "PASS" and len(out.metrics["plan_vias"]) == 1, out.detail
+    # the same question answered by a line that never goes near the via
+    judge.begin(job)
+    node.ns = 30
+    job = host.job = robot_job(judge, node, scenario)
+    judge.send_goal(job)
+    judge.on_costmap(costmap_message(node.pubs["/map"].sent[-1], 40))
+    judge.step(job, view)
+    answer_with(node.actions["compute_path_through_poses"], dense(start, end))
+    judge.step(job, view)
+    out = job.judge.outcome()
+    assert out.verdict == "FAIL(requirement)" and out.detail.startswith("missed_via: "), out.detail
+    assert out.failure_point == pytest.approx(via, abs=0.05)  # where it should have gone
+
+
+def test_a_refusal_through_poses_is_judged_leg_by_leg():
+    gap = costmap_from_occupancy(room("gap"), RES)
+    via = (1.0, 0.3, 0.0)  # low beside the wall, on the way to the gap
+    refused = PlanAnswer(status=6, error_code=308, error_msg="no valid path")
+    out = plan_outcome(gap, rules.navfn(), START, GOAL, refused, vias=(via,))
+    assert out.verdict == "FAIL(requirement)" and out.detail.startswith("missed_path: "), out.detail
+    assert len(out.metrics["certificate"]["legs"]) == 2 and out.metrics["plan_error_code"] == 308
+    beyond = (2.5, 0.5, 0.0)  # behind the full wall: there and back again is impossible
+    full = costmap_from_occupancy(room("full"), RES)
+    proved = plan_outcome(full, rules.navfn(), START, START, refused, vias=(beyond,))
+    assert proved.verdict.startswith("INVALID_TEST(") and proved.metrics["plan_oracle"] == "correct_refusal"
+    assert "leg 1 (the start -> via 1)" in proved.detail and proved.metrics["reference"]["status"] == "absent"

@@ -47,6 +47,12 @@ ACTIONS: dict[str, str] = {
         "uint16 START_OUTSIDE_MAP=203\nuint16 GOAL_OUTSIDE_MAP=204\nuint16 START_OCCUPIED=205\n"
         "uint16 GOAL_OCCUPIED=206\nuint16 TIMEOUT=207\nuint16 NO_VALID_PATH=208\n"
         "nav_msgs/Path path\nbuiltin_interfaces/Duration planning_time\nuint16 error_code\nstring error_msg\n---\n"),
+    "nav2_msgs/action/ComputePathThroughPoses": (
+        "geometry_msgs/PoseStamped[] goals\ngeometry_msgs/PoseStamped start\nstring planner_id\nbool use_start\n---\n"
+        "uint16 NONE=0\nuint16 UNKNOWN=300\nuint16 INVALID_PLANNER=301\nuint16 TF_ERROR=302\n"
+        "uint16 START_OUTSIDE_MAP=303\nuint16 GOAL_OUTSIDE_MAP=304\nuint16 START_OCCUPIED=305\n"
+        "uint16 GOAL_OCCUPIED=306\nuint16 TIMEOUT=307\nuint16 NO_VALID_PATH=308\nuint16 NO_VIAPOINTS_GIVEN=309\n"
+        "nav_msgs/Path path\nbuiltin_interfaces/Duration planning_time\nuint16 error_code\nstring error_msg\n---\n"),
     "nav2_msgs/action/SmoothPath": (
         "nav_msgs/Path path\nstring smoother_id\nbuiltin_interfaces/Duration max_smoothing_duration\n"
         "bool check_for_collisions\n---\n"

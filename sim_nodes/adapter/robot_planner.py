@@ -13,8 +13,11 @@ Nav2's ``planner_server`` (and ``smoother_server``) alone. Per scenario:
   passes. Nav2's grid translation is exact at the values the oracles read (free, 253, 254,
   unknown), so the grid is enough; ``nav2_msgs/Costmap`` (``costmap_raw``) is not in our type store.
 * **The question**: ``compute_path_to_pose`` (``ComputePathToPose``: the scenario's start and goal
-  with ``use_start`` true, ``planner_id``); with ``smooth`` the path it returns goes to
-  ``smooth_path`` (``SmoothPath``, ``check_for_collisions`` false: we check).
+  with ``use_start`` true, ``planner_id``); a scenario with vias (``problems.robot_hazards``, read
+  from the scenario its ``meta.scenario_json`` holds: the message has map, start and goal only)
+  asks ``compute_path_through_poses`` (``ComputePathThroughPoses``: goals the vias in order, then
+  the goal); with ``smooth`` the path it returns goes to ``smooth_path`` (``SmoothPath``,
+  ``check_for_collisions`` false: we check).
 * **The verdict** (``plan_outcome``): ``judge_plan`` (``ambiegen_ros.sims.plans``) on the costmap
   read back, with the rules of ``planner_plugin`` (a ``rules.PROFILES`` entry, ``planner_rules``
   overriding its defaults). A path the oracles flag is FAIL(collision) for a path or a smoothed
@@ -53,6 +56,7 @@ from .params import Param
 from .robot_topic import ROBOT_ORACLE, ROBOT_PARAMS
 
 PLAN_ACTION = "nav2_msgs/action/ComputePathToPose"
+PLAN_THROUGH_ACTION = "nav2_msgs/action/ComputePathThroughPoses"
 SMOOTH_ACTION = "nav2_msgs/action/SmoothPath"
 GET_STATE = "lifecycle_msgs/srv/GetState"
 SUCCEEDED = 4  # action_msgs/GoalStatus
@@ -98,6 +102,9 @@ PLANNER_PARAMS = tuple(p for p in ROBOT_PARAMS if p.name in ("settle_time", "map
     Param("planner_id", str, "", "goal_mode plan: ComputePathToPose's planner_id (the planner_server's plugin "
                                  "name, e.g. GridBased; '' = its only one)"),
     Param("plan_action", str, "compute_path_to_pose", "goal_mode plan: the planner_server's action"),
+    Param("plan_through_action", str, "compute_path_through_poses", "goal_mode plan: the planner_server's action for "
+                                                                    "a scenario with vias (asked when the config's "
+                                                                    "max_vias > 0: goals the vias, then the goal)"),
     Param("smooth", bool, False, "goal_mode plan: send each path to smooth_action too and check that the smoothed "
                                  "path collides nowhere its input did not"),
     Param("smooth_action", str, "smooth_path", "goal_mode plan: the smoother_server's action"),
@@ -162,12 +169,13 @@ def clearance(costmap: Costmap, path: np.ndarray) -> float:
 
 
 def plan_outcome(costmap: Costmap, rules: plan_rules.PlannerRules, start: tuple, goal: tuple,
-                 answer: PlanAnswer) -> Outcome:
-    """The verdict on one answer (module docstring): a finding, an INVALID_TEST or a PASS, with metrics."""
+                 answer: PlanAnswer, vias: tuple = ()) -> Outcome:
+    """The verdict on one answer (module docstring): a finding, an INVALID_TEST or a PASS, with
+    metrics; ``vias``: the poses it was asked through (ComputePathThroughPoses), in order."""
     error = answer.error
     judgement = judge_plan(costmap, rules, start, goal, path=None if error else answer.path, error=error,
                            planning_time=answer.planning_time,
-                           smoothed=answer.smoothed if not error else None)
+                           smoothed=answer.smoothed if not error else None, vias=vias)
     v = judgement.verdict
     # a path that held is as close as its judged poses came: those leaving a colliding start are not judged
     near = clearance(costmap, answer.path[judgement.judged_from:]) if not error else math.inf
@@ -179,6 +187,8 @@ def plan_outcome(costmap: Costmap, rules: plan_rules.PlannerRules, start: tuple,
         "plan_clearance_m": None if math.isinf(near) else round(near, 4),
         "costmap": [costmap.size_x, costmap.size_y, costmap.resolution, costmap.origin_x, costmap.origin_y],
     }
+    if vias:
+        metrics["plan_vias"] = [[round(float(v), 4) for v in via] for via in vias]
     if answer.smooth_error:
         metrics["smooth_error"] = answer.smooth_error
     if answer.smoothed is not None and not error:  # the smoother answered: its path, as the input's figures
@@ -276,9 +286,13 @@ class PlannerRobot(ScenarioJudge):
             names.append("smoother_server")
         self.lifecycle_nodes, self.active, self._asking = names, set(), set()
         self.grid: Any = None  # the newest costmap message
+        # scenarios may hold vias: ask (and wait for) the through-poses action too
+        self.through_poses = bool(getattr(getattr(problem, "config", None), "max_vias", 0))
+        self.plan_through: Any = None
         self.reset()
 
     def reset(self) -> None:
+        self.vias: tuple = ()  # this scenario's vias, (x, y, yaw) in order
         self.state, self.since, self.published, self.occupied = "idle", 0.0, None, None
         self.answer, self.costmap, self.why_not, self.grid_seen = PlanAnswer(), None, "no costmap yet", None
 
@@ -288,6 +302,8 @@ class PlannerRobot(ScenarioJudge):
         self.pub_map = n.create_publisher("nav_msgs/msg/OccupancyGrid", s.map_topic, LATCHED)
         n.create_subscription(self.SAMPLE_TYPE, s.costmap_topic, self.on_costmap, LATCHED)
         self.plan = n.create_action_client(PLAN_ACTION, s.plan_action)
+        if self.through_poses:
+            self.plan_through = n.create_action_client(PLAN_THROUGH_ACTION, s.plan_through_action)
         self.smoother = n.create_action_client(SMOOTH_ACTION, s.smooth_action) if s.smooth else None
         self._states = {name: n.create_client(GET_STATE, f"/{name}/get_state") for name in self.lifecycle_nodes}
         frames = [f.strip() for f in s.tf_frames.split(",") if f.strip()]
@@ -307,6 +323,8 @@ class PlannerRobot(ScenarioJudge):
     def missing(self) -> list[str]:
         """The servers' actions, and each lifecycle node active (asked over get_state until it is)."""
         out = [] if self.plan.server_is_ready() else [f"the planner's {self.settings.plan_action} action is not up"]
+        if self.plan_through is not None and not self.plan_through.server_is_ready():
+            out.append(f"the planner's {self.settings.plan_through_action} action is not up")
         if self.smoother is not None and not self.smoother.server_is_ready():
             out.append(f"the smoother's {self.settings.smooth_action} action is not up")
         for name, client in self._states.items():
@@ -344,6 +362,7 @@ class PlannerRobot(ScenarioJudge):
         s, g = job.msg.start.pose, job.msg.goal.pose
         job.start_pose = (float(s.position.x), float(s.position.y), conversions.yaw_of(s.orientation))
         self.goal_pose = (float(g.position.x), float(g.position.y), conversions.yaw_of(g.orientation))
+        self.vias = tuple(self.problem.via_poses(job.scenario)) if self.through_poses else ()
         job.judge = PlanRun()
         job.limit_sim = self.settings.costmap_timeout + 2 * self.settings.answer_timeout
         self.pub_map.publish(grid)
@@ -364,7 +383,8 @@ class PlannerRobot(ScenarioJudge):
                 server = "planner_server" if self.state == "planning" else "smoother_server"
                 job.judge.fail("sut_crashed", f"{server} hung: no answer within {self.settings.answer_timeout:g} s")
         elif self.state == "judge":
-            job.judge.decide(plan_outcome(self.costmap, self.rules, job.start_pose, self.goal_pose, self.answer))
+            job.judge.decide(plan_outcome(self.costmap, self.rules, job.start_pose, self.goal_pose, self.answer,
+                                          self.vias))
         return DECIDED if job.judge.decided else HOLD
 
     def _await_costmap(self, job: Any, now: float) -> None:
@@ -381,13 +401,23 @@ class PlannerRobot(ScenarioJudge):
                              f"within {self.settings.costmap_timeout:g} s (last: {self.why_not}): ours, run it again")
 
     def _ask_planner(self, job: Any) -> None:
+        """ComputePathToPose, or with vias ComputePathThroughPoses (goals: the vias in order, then the goal)."""
         make, stamp, frame = self.node.new_message, self.node.now_ns(), self.settings.frame_id
-        request = self.plan.new_goal(goal=conversions.pose_stamped(make, stamp, *self.goal_pose),
-                                     start=conversions.pose_stamped(make, stamp, *job.start_pose),
-                                     planner_id=self.settings.planner_id, use_start=True)
-        request.goal.header.frame_id = request.start.header.frame_id = frame
+        start = conversions.pose_stamped(make, stamp, *job.start_pose)
+        start.header.frame_id = frame
+        if self.vias:
+            goals = [conversions.pose_stamped(make, stamp, *pose) for pose in (*self.vias, self.goal_pose)]
+            for goal in goals:
+                goal.header.frame_id = frame
+            client, request = self.plan_through, self.plan_through.new_goal(
+                goals=goals, start=start, planner_id=self.settings.planner_id, use_start=True)
+        else:
+            goal = conversions.pose_stamped(make, stamp, *self.goal_pose)
+            goal.header.frame_id = frame
+            client, request = self.plan, self.plan.new_goal(goal=goal, start=start,
+                                                            planner_id=self.settings.planner_id, use_start=True)
         self.state, self.since = "planning", time.monotonic()
-        self._send(self.plan, request, job.judge, self._on_plan)
+        self._send(client, request, job.judge, self._on_plan)
 
     def _send(self, client: Any, request: Any, run: PlanRun, then: Any) -> None:
         """Send a goal; ``then(wrapped result)`` unless the scenario is over (``run`` no longer the job's)."""

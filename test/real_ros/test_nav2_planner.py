@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
-for extra in (REPO, REPO / "test" / "ros", REPO / "test" / "sims"):
+for extra in (REPO, REPO / "test" / "ros", REPO / "test" / "sims", REPO / "test" / "helpers"):
     if str(extra) not in sys.path:
         sys.path.insert(0, str(extra))
 
@@ -43,8 +43,34 @@ def test_jazzy_navfn_answers_two_maps_and_our_oracles_judge_both(jazzy, workspac
     assert set(rows) == {"clear", "wall"}, rows
     for name, row in rows.items():
         assert row["failure_kind"] not in ("error", "sim_timeout", "invalid_test"), (name, row["detail"])
-        assert row["metrics"]["planner"] == "navfn" and row["metrics"]["plan_poses"] > 1, (name, row["metrics"])
+        assert row["metrics"]["planner"] == "navfn" and int(row["metrics"]["plan_poses"]) > 1, (name, row["metrics"])
         assert row["failure_kind"] == "none", f"a finding on {name}? {row['verdict']}: {row['detail']}"
-    assert rows["wall"]["metrics"]["plan_clearance_m"] is not None  # a wall near the path, measured
+    assert rows["wall"]["metrics"]["plan_clearance_m"] not in (None, "None")  # a wall near the path, measured
     (logs,) = bags.glob("jazzy_*/logs")
     assert "planner_server" in (logs / "planner_server.log").read_text()
+
+
+def test_jazzy_navfn_plans_through_a_via_and_our_oracles_judge_the_joined_legs(jazzy, workspace, tmp_path, ros_domain):
+    """config/robot_planner_vias.yaml's room with one via (test/helpers/hazards_cases.py): the
+    adapter asks compute_path_through_poses on config/nav2/planners/navfn.yaml (Jazzy's NavFn, a
+    0.5 m square tolerance), and the path Jazzy joins from its two legs must pass every oracle, the
+    via's included. Anything else is named in the assertion."""
+    from hazards_cases import via_scenario
+
+    from ambiegen_ros.trials.rows import TrialLog
+
+    require(jazzy, *PLANNER)
+    suite = tmp_path / "via.json"
+    suite.write_text(json.dumps({"suite": [{"scenario": via_scenario(), "name": "via"}]}))
+    results, bags = tmp_path / "rows.jsonl", tmp_path / "bags"
+    params = REPO / "config" / "nav2" / "planners" / "navfn.yaml"
+    run = ros_run(f"ros2 run ambiegen_ros ambiegen rerun {suite} --stack planner --params navfn={params} "
+                  f"--config {REPO / 'config' / 'robot_planner_vias.yaml'} --our-transport dds --repeat 1 "
+                  f"--domain-id {ros_domain} --results {results} --bags {bags}", workspace, ros_env(ros_domain),
+                  timeout=900)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    (row,) = TrialLog(results).rows()
+    m = row["metrics"]
+    assert row["failure_kind"] == "none", f"a finding? {row['verdict']}: {row['detail']}"
+    assert m["planner"] == "navfn" and m["plan_oracle"] == "pass" and int(m["plan_poses"]) > 100, m
+    assert json.loads(m["plan_vias"]) == [[10.125, 1.625, 1.5708]]  # asked through the via, judged through it

@@ -370,6 +370,20 @@ class RobotProblem(Problem):
             out.unmapped = {"posts": posts.tolist(), "boxes": boxes.tolist(), "people": people}
         return out
 
+    def via_poses(self, scenario: Scenario) -> list[tuple[float, float, float]]:
+        """A scenario's vias as (x, y, yaw) in metres, in the order flown through: each cell's centre,
+        as the scenario message's start and goal (``RobotMap.via_poses`` without making the map);
+        [] where the config has no vias. The message carries map, start and goal only: a planner's
+        judge reads the vias here, from the scenario its ``meta.scenario_json`` holds."""
+        if not self.hazards or not self.config.max_vias:
+            return []
+        from .. import robot_hazards as hz
+
+        G, lengths = self.codec.split(self.codec.to_row(scenario))
+        res, cells = self.config.resolution, G[0]
+        return [(float((cells[i, hz.POSITION] + 0.5) * res), float((cells[i, hz.ROW] + 0.5) * res),
+                 math.radians(float(cells[i, hz.HEADING]))) for i in hz.via_rows(cells, int(lengths[0]))]
+
     def hazard_features(self, scenario: Scenario, speed: float | None = None) -> dict[str, float]:
         """``robot_hazards.features`` of one hazards scenario (what its hazards do to the route), with
         the robot at ``speed`` (m/s; default: the config's ``threat_speed``)."""
