@@ -2,14 +2,16 @@
 
     python bench/planner_search.py --setup ~/jazzy-verify/install/setup.bash --plugin navfn --algorithm ga --seed 1
     python bench/planner_search.py --setup ... --plugin navfn --algorithm random --seed 1 --minutes 3
+    python bench/planner_search.py --setup ... --plugin navfn --config config/robot_planner_vias.yaml
     python bench/planner_search.py --report
 
 One run is one ``ambiegen stack-search --stack planner`` on ``config/robot_planner.yaml`` (walls, a
-start and a goal anywhere) against ``config/nav2/planners/<plugin>.yaml`` (Jazzy's costmap, one
+start and a goal anywhere; ``--config``: another, e.g. ``config/robot_planner_vias.yaml``, whose 1 to 3
+vias are asked through ComputePathThroughPoses) against ``config/nav2/planners/<plugin>.yaml`` (Jazzy's costmap, one
 planner plugin), for ``--minutes`` of wall time: the planner stack has no clock to scale. From its
 rows: scenarios answered and their rate, findings (a failure the oracles of ``sims.plans`` give,
 each certified by our own code on the costmap read back), **distinct findings** (one per
-``finding_key``: plugin, oracle, Nav2's error code, shape), invalid tests (refusals the reference
+``finding_key``: plugin, oracle, Nav2's error code, shape; a row says its config), invalid tests (refusals the reference
 proves right), errors, and the closest call (the least clearance of a path that held, m). One JSON
 row per run is appended to ``bench/results/planner_search.jsonl``, never rewritten.
 
@@ -42,21 +44,26 @@ EDGE_CELLS = 1  # a start or goal this many scenario cells from the border wall 
 
 
 def shape_of(row: dict) -> str:
-    """Where a finding lies, coarsely: start and goal in one cell, an end at the map's edge, or inside."""
-    sc = {e["type"]: e for e in row["scenario"]["elements"] if e["type"] in ("start", "goal")}
+    """Where a finding lies, coarsely, over the poses flown through (start, vias in order, goal):
+    two in a row in one cell (a leg of no length), one at the map's edge, or all inside."""
+    elements = row["scenario"]["elements"]
+    sc = {e["type"]: e for e in elements if e["type"] in ("start", "goal")}
     s, g = sc.get("start"), sc.get("goal")
     if s is None or g is None:
         return "other"
-    if (s["position"], s["row"]) == (g["position"], g["row"]):
+    chain = [s, *(e for e in elements if e["type"] == "via"), g]
+    if any((a["position"], a["row"]) == (b["position"], b["row"]) for a, b in zip(chain, chain[1:])):
         return "same_cell"
     if any(min(e["position"], e["row"]) <= EDGE_CELLS or max(e["position"], e["row"]) >= 49 - EDGE_CELLS
-           for e in (s, g)):
+           for e in chain):
         return "edge"
     return "inside"
 
 
 def finding_key(row: dict) -> str:
-    """One bug, one key: the plugin, the oracle that flagged it, Nav2's error code, the shape."""
+    """One bug, one key: the plugin, the oracle that flagged it, Nav2's error code, the shape. A
+    finding through poses keys alike: its own oracles (``missed_via``, ``path_gap``) and error
+    codes (30x) set it apart, and a collision in one of its legs is the same bug as in one path."""
     m = row.get("metrics", {})
     return "/".join(str(x) for x in (m.get("planner", row["label"]), m.get("plan_oracle", row["failure_kind"]),
                                      m.get("plan_error_code", ""), shape_of(row)))
@@ -90,7 +97,8 @@ def run(args: argparse.Namespace) -> dict:
         cmd = (f"source {args.setup} && export RMW_IMPLEMENTATION=rmw_cyclonedds_cpp AMBIEGEN_TRANSPORT=dds && "
                f"exec {REPO / '.venv' / 'bin' / 'ambiegen'} stack-search --algorithm {args.algorithm} "
                f"--hours {args.minutes / 60.0} --time-scale 1 --stack planner "
-               f"--params {args.plugin}={params} --config {CONFIG} --our-transport dds --domain-id {args.domain_id} "
+               f"--params {args.plugin}={params} --config {args.config} --our-transport dds "
+               f"--domain-id {args.domain_id} "
                f"--results {d / 'rows.jsonl'} --bags {d / 'bags'} --out {d / 'out'} --seed {args.seed}")
         proc = subprocess.run(["bash", "-c", cmd], cwd=REPO, capture_output=True, text=True,
                               timeout=args.minutes * 60 + 900)
@@ -104,15 +112,21 @@ def run(args: argparse.Namespace) -> dict:
             keep = Path(args.keep) / f"{args.plugin}_{args.algorithm}_{args.seed}.jsonl"
             keep.parent.mkdir(parents=True, exist_ok=True)
             keep.write_text("".join(json.dumps(r) + "\n" for r in found + closest))
-    return {"plugin": args.plugin, "algorithm": args.algorithm, "seed": args.seed, "minutes": args.minutes,
+    config = {} if args.config == CONFIG else {"config": args.config}  # the default's rows stay as they were
+    return {"plugin": args.plugin, "algorithm": args.algorithm, "seed": args.seed, "minutes": args.minutes, **config,
             "when": datetime.now(timezone.utc).isoformat(timespec="seconds"), **summarise(rows, args.minutes)}
+
+
+def setup_of(row: dict) -> str:
+    """A run's configuration: its plugin, and the scenarios' config when not the default."""
+    return row["plugin"] + (f" on {row['config']}" if row.get("config") else "")
 
 
 def survived(rows: list[dict]) -> None:
     """Per plugin (config file), every run of any length together: what it was asked and what broke."""
     print("## What each configuration survived (every run, any length)")
-    for plugin in sorted({r["plugin"] for r in rows}):
-        mine = [r for r in rows if r["plugin"] == plugin]
+    for plugin in sorted({setup_of(r) for r in rows}):
+        mine = [r for r in rows if setup_of(r) == plugin]
         sent = sum(r["scenarios"] for r in mine)
         invalid = sum(r["invalid_tests"] for r in mine)
         keys: Counter = Counter()
@@ -127,9 +141,9 @@ def report() -> None:
 
     rows = [json.loads(line) for line in OUT.read_text().splitlines() if line.strip()] if OUT.exists() else []
     survived(rows)
-    for plugin, minutes in sorted({(r["plugin"], r["minutes"]) for r in rows}):
+    for plugin, minutes in sorted({(setup_of(r), r["minutes"]) for r in rows}):
         # runs of one length only: a long survival run is no sample of what two minutes find
-        side = {a: [r for r in rows if (r["plugin"], r["minutes"], r["algorithm"]) == (plugin, minutes, a)]
+        side = {a: [r for r in rows if (setup_of(r), r["minutes"], r["algorithm"]) == (plugin, minutes, a)]
                 for a in ("ga", "nsga2", "random")}
         print(f"## {plugin}, runs of {minutes:g} min")
         for algorithm, runs in side.items():
@@ -155,13 +169,13 @@ def report() -> None:
                   f"one-sided p {p:.4g}{tag}")
 
 
-def draw_closest(keeps: list[str], out: Path) -> None:
+def draw_closest(keeps: list[str], out: Path, config: str = CONFIG) -> None:
     """Per plugin, the path that held closest to a lethal cell over every kept run, drawn (``--keep``
     folders hold each run's findings and its closest call): what a planner survived, seen."""
     from ambiegen_ros.run_config import make_run
     from ambiegen_ros.viz.trials import save_runs_side_by_side
 
-    problem = make_run("robot", str(REPO / CONFIG), seed=0)[0]
+    problem = make_run("robot", str(REPO / config), seed=0)[0]
     best: dict[str, tuple[float, dict, str]] = {}
     for folder in keeps:
         for path in sorted(Path(folder).glob("*.jsonl")):
@@ -185,6 +199,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--setup", default=os.environ.get("AMBIEGEN_ROS_SETUP", ""), help="a Jazzy install's setup.bash")
     ap.add_argument("--plugin", default="navfn", help="config/nav2/planners/<plugin>.yaml")
+    ap.add_argument("--config", default=CONFIG, help="the scenarios' config (config/robot_planner_vias.yaml: "
+                    "1 to 3 vias, asked through ComputePathThroughPoses)")
     ap.add_argument("--algorithm", choices=("ga", "nsga2", "random"), default="ga")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--minutes", type=float, default=3.0, help="wall minutes of the planner stack per run")
@@ -200,7 +216,7 @@ def main() -> int:
         report()
         return 0
     if args.draw_closest:
-        draw_closest(args.draw_closest, Path(args.out))
+        draw_closest(args.draw_closest, Path(args.out), args.config)
         return 0
     if not args.setup or not Path(args.setup).exists():
         raise SystemExit("--setup: a ROS 2 Jazzy install's setup.bash with Nav2's planner_server (or AMBIEGEN_ROS_SETUP)")

@@ -21,7 +21,8 @@ STACK_HELP = ("nd: our Nearness Diagram robot on Nav2's topics (no ROS needed); 
               "navigator) with the params; external: your Nav2, which you start when told; planner: Nav2's "
               "planner_server and smoother_server (and a lifecycle manager) alone, by ros2 run with the params on "
               "wall time, no world or controller: the adapter publishes each map and the static TF map -> odom -> "
-              "base_link, asks compute_path_to_pose, and judges the path on the costmap it reads back "
+              "base_link, asks compute_path_to_pose (compute_path_through_poses for a scenario with vias), and "
+              "judges the path on the costmap it reads back "
               "(docs/planner_oracles.md; no --overlay unless given) (Nav2 stacks need a sourced ROS 2 Jazzy)")
 
 

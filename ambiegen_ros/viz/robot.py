@@ -36,8 +36,8 @@ def plot_scenario(problem, scenario, ax=None, title=None):
 
 
 def draw_hazards(ax, env, t: float | None = None) -> None:
-    """What a hazards scenario (issue 48) adds to the map: the start's and goal's yaw, and what is
-    in the world but not in the map (orange: boxes and posts; purple: people, their path from where
+    """What a hazards scenario (issue 48) adds to the map: the start's and goal's yaw, a planner's
+    vias (issue 68, numbered in the order flown through), and what is in the world but not in the map (orange: boxes and posts; purple: people, their path from where
     they stand to where they stop, and the second they set off; with ``t`` where they are then).
     Zooms to the part of the map they and the route occupy."""
     from matplotlib.patches import Circle, Rectangle
@@ -47,8 +47,14 @@ def draw_hazards(ax, env, t: float | None = None) -> None:
     for (x, y), yaw, color in ((env.start_m, env.start_yaw, "tab:green"), (env.goal_m, env.goal_yaw, "tab:red")):
         ax.annotate("", xy=(x + 0.8 * np.cos(yaw), y + 0.8 * np.sin(yaw)), xytext=(x, y),
                     arrowprops={"arrowstyle": "->", "color": color, "lw": 1.8})
+    for k, (x, y, yaw) in enumerate(getattr(env, "via_poses", [])):  # a planner's vias, numbered in order
+        ax.annotate("", xy=(x + 0.6 * np.cos(yaw), y + 0.6 * np.sin(yaw)), xytext=(x, y),
+                    arrowprops={"arrowstyle": "->", "color": "tab:cyan", "lw": 1.5})
+        ax.plot(x, y, "D", color="tab:cyan", ms=7, label="via (in order)" if k == 0 else None)
+        ax.text(x, y + 0.3, str(k + 1), fontsize=7, color="tab:cyan", ha="center")
     hz = env.unmapped or {}
     pts = [np.asarray(env.start_m), np.asarray(env.goal_m)] + [np.asarray(env.path_m)]
+    pts += [np.asarray(p[:2]) for p in getattr(env, "via_poses", [])]
     for k, (x0, y0, x1, y1) in enumerate(hz.get("boxes", [])):
         ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, color="tab:orange", alpha=0.8,
                                label="box, not in the map" if k == 0 else None))
