@@ -285,6 +285,30 @@ def test_pictures_are_drawn_for_the_scenarios_whose_verdict_changed(tmp_path):
         report.write(suite, results, ["jazzy", "fix"], tmp_path / "out", "T1", "compare")  # never over a report
 
 
+def test_a_search_report_draws_the_first_failing_scenarios_of_each_kind_only(tmp_path):
+    """A search's report (``pictures_per_kind``) draws the first failing scenarios of each kind (the
+    verdict's kind and the planner's oracle) and says how many it left out; a rerun's draws them all."""
+    scenarios = [c["scenario"] for c in CASES["cases"][:4]]
+    suite_file = tmp_path / "s.json"
+    suite_file.write_text(json.dumps({"suite": scenarios}))
+    suite = load_suite([str(suite_file)], CONFIG)
+    keys = [e.key for e in suite.entries]
+    traj = [[2.0, 2.0], [5.0, 5.0], [9.0, 9.0]]
+    oracles = ["collision", "collision", "collision", "missed_path"]  # three of one kind, one of another
+    log = TrialLog(tmp_path / "r.jsonl")
+    for key, oracle in zip(keys, oracles):
+        log.append(dict(row("j", key, "collision" if oracle == "collision" else "requirement"),
+                        metrics={"plan_oracle": oracle}, trajectory_every_10=traj, failure_point=[9.0, 9.0]))
+    written = report.write(suite, log.path, ["j"], tmp_path / "search", "T1", "rerun", pictures_per_kind=2)
+    names = sorted(Path(p).stem for p in written["pictures"])
+    assert len(names) == 3 and written["pictures_left_out"] == 1
+    assert sorted(Path(p).stem for p in report.write(suite, log.path, ["j"], tmp_path / "all", "T1",
+                                                      "rerun")["pictures"]) == sorted(
+        names + [suite.entries[2].name.replace(":", "_")])
+    assert report.first_of_each_kind(keys, [dict(row("j", k, "collision"), metrics={"plan_oracle": o})
+                                            for k, o in zip(keys, oracles)], 1) == [keys[0], keys[3]]
+
+
 def test_the_runner_starts_each_node_script_as_the_console_script_does():
     """``campaign.node_argv`` runs an executable of ours as ``python -m <module>``; the module is the
     one ``entry.SCRIPTS`` gives the console script (and ``ros2 run``)."""

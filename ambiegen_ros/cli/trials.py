@@ -16,6 +16,9 @@ from typing import Any, Callable
 
 from .common import BadInput, add_config_option
 
+# a search's report draws this many failing scenarios of each kind (``report.failure_kind_of``): a
+# planner search fails hundreds of times on one bug, and drawing each took minutes after the search
+SEARCH_PICTURES_PER_KIND = 3
 STACK_HELP = ("nd: our Nearness Diagram robot on Nav2's topics (no ROS needed); bringup: nav2_bringup's "
               "navigation_launch.py with the params; ours: the minimum Nav2 (controller, planner, behaviours, BT "
               "navigator) with the params; external: your Nav2, which you start when told; planner: Nav2's "
@@ -358,10 +361,13 @@ def cmd_search(args) -> int:
     md, _ = report.report(suite, results, [config.label])
     print("\n".join(md))
     written = report.write(suite, results, [config.label], args.out or str(results.parent / f"{results.stem}_reports"),
-                           utc_stamp(), "rerun")
+                           utc_stamp(), "rerun", pictures_per_kind=SEARCH_PICTURES_PER_KIND)
     print(f"written: {written['md']}, {written['json']}")
     for picture in written.get("pictures", []):
         print(f"picture: {picture}")
+    if written.get("pictures_left_out"):
+        print(f"pictures: the first {SEARCH_PICTURES_PER_KIND} failing scenarios of each kind; "
+              f"{written['pictures_left_out']} more left out (each is a row of the report's table)")
     return code
 
 

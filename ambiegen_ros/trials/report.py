@@ -56,11 +56,36 @@ def _safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)[:80]
 
 
+def failure_kind_of(row: dict) -> tuple[str, str, str]:
+    """What a failing row is, coarsely enough that one bug is one kind: the verdict's kind, the
+    planner oracle that flagged it and the known failure it matches (each '' where it has none)."""
+    metrics = row.get("metrics") or {}
+    return (str(row.get("failure_kind", "")), str(metrics.get("plan_oracle", "")), str(row.get("known_failure") or ""))
+
+
+def first_of_each_kind(keys: list[str], rows: list[dict], per_kind: int) -> list[str]:
+    """The first ``per_kind`` of ``keys`` (failing scenarios, in order) of each failure kind: a search
+    may fail hundreds of times on one bug, and a picture of each would cost minutes, not tell more."""
+    kind_of: dict[str, tuple] = {}
+    for r in rows:
+        if r.get("failed"):
+            kind_of.setdefault(r["key"], failure_kind_of(r))
+    seen: dict[tuple, int] = {}
+    kept = []
+    for key in keys:
+        kind = kind_of.get(key, ("",))
+        if seen.get(kind, 0) < per_kind:
+            seen[kind] = seen.get(kind, 0) + 1
+            kept.append(key)
+    return kept
+
+
 def write(suite: Suite, results: str | Path, labels: list[str], out_dir: str | Path, stamp: str,
-          what: str) -> dict[str, Any]:
+          what: str, pictures_per_kind: int | None = None) -> dict[str, Any]:
     """Write ``<what>_<stamp>.md`` and ``.json`` in ``out_dir``, and the pictures (``pictures_<stamp>/``)
-    of the scenarios whose verdicts changed (a comparison) or that failed (a rerun). Returns the paths
-    written."""
+    of the scenarios whose verdicts changed (a comparison) or that failed (a rerun); with
+    ``pictures_per_kind`` only the first that many failing scenarios of each kind (``failure_kind_of``).
+    Returns the paths written, and ``pictures_left_out``: how many failing scenarios got no picture."""
     from ..viz.trials import save_runs_side_by_side
     from .tables import Cell
 
@@ -78,6 +103,10 @@ def write(suite: Suite, results: str | Path, labels: list[str], out_dir: str | P
     rows = rows_of(results, labels, set(names))
     drawn = changed(suite, results, labels) if len(labels) > 1 else \
         [key for key in names if any(r["key"] == key and r.get("failed") for r in rows)]
+    if pictures_per_kind is not None:
+        kept = first_of_each_kind(drawn, rows, pictures_per_kind)
+        written["pictures_left_out"] = len(drawn) - len(kept)
+        drawn = kept
     if drawn:
         pictures = []
         for key in drawn:
