@@ -432,6 +432,30 @@ def test_a_finding_is_written_as_nav2s_maintainers_ask_for_one(tmp_path):
 
 
 # --- through poses (ComputePathThroughPoses) ----------------------------------------------------------
+def test_a_finding_through_vias_is_written_with_its_vias(tmp_path):
+    """A finding of config/robot_planner_vias.yaml: its script asks ComputePathThroughPoses through the
+    scenario's vias, in order, then the goal (as the adapter did), and its page reruns it on that config."""
+    from ambiegen_ros.run_config import make_run
+    from ambiegen_ros.trials.planner_findings import write_finding
+
+    config = "config/robot_planner_vias.yaml"
+    problem = make_run("robot", str(REPO / config), seed=0)[0]
+    G, lengths = problem.sample(1, np.random.default_rng(3))
+    scenario = problem.codec.from_rows(problem.codec.join(G, lengths))[0]
+    vias = [tuple(round(v, 4) for v in via) for via in problem.via_poses(scenario)]
+    assert vias  # the config gives every scenario one via or more
+    row = {"scenario_name": "case", "scenario": scenario.to_dict(), "failed": True, "failure_kind": "requirement",
+           "detail": "missed_via: ...", "versions": {"ambiegen_ros": "x"}, "when": "now"}
+    page = write_finding([row], "case", problem, REPO / "config" / "nav2" / "planners" / "navfn.yaml", 5, tmp_path,
+                         "new", "", "why", config=config)
+    script = (tmp_path / "case_reproduce.py").read_text()
+    compile(script, "case_reproduce.py", "exec")
+    assert f"VIAS = {vias}" in script and "getPathThroughPoses" in script and "asks\nComputePathThroughPoses" in script
+    text = page.read_text()
+    assert f"--config {config}" in text and "ComputePathThroughPoses with `use_start: true`" in text
+    assert str(vias[0]) in text
+
+
 def test_a_scenario_with_vias_asks_through_poses_and_the_path_is_judged_through_them(robot, monkeypatch):
     """config/robot_planner_vias.yaml: the message carries map, start and goal; the vias come from the
     scenario (its meta.scenario_json), at their cells' centres. The question goes to

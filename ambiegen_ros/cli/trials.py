@@ -458,7 +458,8 @@ def cmd_planner_report(args) -> int:
     try:
         page = write_finding(TrialLog(Path(args.results)).rows(), args.scenario, problem, params, upsample,
                              Path(args.out), args.label, args.references or "no reference yet", args.explain,
-                             Path(args.picture) if args.picture else None, min_turning_radius=min_radius)
+                             Path(args.picture) if args.picture else None, min_turning_radius=min_radius,
+                             config=args.config)
     except ValueError as exc:
         raise BadInput(str(exc)) from None
     print(f"written: {page}")

@@ -71,7 +71,7 @@ In a terminal each (a sourced Jazzy in each):
   ros2 run nav2_lifecycle_manager lifecycle_manager --ros-args -p node_names:="{node_names}" -p autostart:=true
   python3 {script}
 This script publishes the map ({map_yaml}, latched on /map, as map_server would), asks
-ComputePathToPose through nav2_simple_commander and checks the answer on the costmap Nav2 made{smooth_words}.
+{action} through nav2_simple_commander and checks the answer on the costmap Nav2 made{smooth_words}.
 If planner_server crashes, its own terminal says so, and this script waits for an answer that will
 not come: stop it with Ctrl-C.
 """
@@ -86,6 +86,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 HERE = Path(__file__).resolve().parent
 START, GOAL = {start}, {goal}
+VIAS = {vias}  # ComputePathThroughPoses through these (x, y, yaw), in order, then GOAL; []: ComputePathToPose
 RESOLUTION, INSCRIBED = {resolution}, {inscribed}
 MIN_RADIUS = {min_radius}  # the planner's minimum turning radius (m); None: a 2D planner, no turning limit
 SMOOTH = {smooth}  # the path also goes to smoother_server's SmoothPath (check_for_collisions false), checked too
@@ -141,7 +142,10 @@ def main():
         if costmap.metadata.size_x == width and max(costmap.data) == 254:
             break
         rclpy.spin_once(nav, timeout_sec=0.1)
-    path = nav.getPath(pose(nav, *START), pose(nav, *GOAL), use_start=True)
+    if VIAS:
+        path = nav.getPathThroughPoses(pose(nav, *START), [pose(nav, *v) for v in VIAS + [GOAL]], use_start=True)
+    else:
+        path = nav.getPath(pose(nav, *START), pose(nav, *GOAL), use_start=True)
     if path is None or not path.poses:
         print(f"no path (error {{nav.result_future.result().result.error_code if nav.result_future else '?'}})")
         return
@@ -174,9 +178,12 @@ if __name__ == "__main__":
 
 def write_finding(rows: Sequence[dict], name: str, problem: Any, params_file: Path, upsample: int, out: Path,
                   label: str, references: str, explanation: str, picture: Path | None = None,
-                  jazzy_params: Path | None = None, min_turning_radius: float | None = None) -> Path:
+                  jazzy_params: Path | None = None, min_turning_radius: float | None = None,
+                  config: str = "config/robot_planner.yaml") -> Path:
     """Write the finding's files (module docstring); the path of its page. ``min_turning_radius``:
-    the planner's (Hybrid-A*, Lattice), so that the script also reports the path's tightest turn."""
+    the planner's (Hybrid-A*, Lattice), so that the script also reports the path's tightest turn;
+    ``config``: the run config the rows ran with, for the page's rerun command. A scenario with vias
+    is asked through them (ComputePathThroughPoses), in the script as in the rows."""
     if label not in LABELS:
         raise ValueError(f"label: {label!r} (allowed: {', '.join(LABELS)})")
     runs = [r for r in rows if r.get("scenario_name") == name]
@@ -189,6 +196,8 @@ def write_finding(rows: Sequence[dict], name: str, problem: Any, params_file: Pa
     first = runs[0]
     scenario = problem.parse(first["scenario"])
     occupied, res, start, goal = map_of(problem, scenario, upsample)
+    vias = [tuple(round(v, 4) for v in via) for via in problem.via_poses(scenario)]
+    action = "ComputePathThroughPoses" if vias else "ComputePathToPose"
     write_map(occupied, res, out / name)
     params = out / f"{name}_params.yaml"
     params.write_text(Path(params_file).read_text())
@@ -198,7 +207,8 @@ def write_finding(rows: Sequence[dict], name: str, problem: Any, params_file: Pa
     script = out / f"{name}_reproduce.py"
     script.write_text(SCRIPT.format(title=name, params=params.name, script=script.name, map_yaml=f"{name}.yaml",
                                     pgm=f"{name}.pgm", start=tuple(round(v, 4) for v in start),
-                                    goal=tuple(round(v, 4) for v in goal), resolution=res,
+                                    goal=tuple(round(v, 4) for v in goal), vias=vias, action=action,
+                                    resolution=res,
                                     inscribed=round(inscribed, 4), min_radius=min_turning_radius, smooth=smooth,
                                     smoother_line=("\n  ros2 run nav2_smoother smoother_server --ros-args "
                                                    f"--params-file {params.name}") if smooth else "",
@@ -218,8 +228,9 @@ def write_finding(rows: Sequence[dict], name: str, problem: Any, params_file: Pa
         "## The scenario", "",
         f"- Map: [`{name}.yaml`]({name}.yaml) + [`{name}.pgm`]({name}.pgm), {occupied.shape[1]} x "
         f"{occupied.shape[0]} cells at {res:g} m, origin (0, 0).",
-        f"- Start (x, y, yaw): {tuple(round(v, 4) for v in start)}; goal: {tuple(round(v, 4) for v in goal)} "
-        "(ComputePathToPose with `use_start: true`).",
+        f"- Start (x, y, yaw): {tuple(round(v, 4) for v in start)}; " +
+        (f"vias, in order: {'; '.join(str(v) for v in vias)}; " if vias else "") +
+        f"goal: {tuple(round(v, 4) for v in goal)} ({action} with `use_start: true`).",
         f"- Params: [`{name}_params.yaml`]({name}_params.yaml), `config/nav2/planners/` of AmbieGen-ROS: "
         "Jazzy's `nav2_params.yaml` global costmap (static and inflation layers; it updates and publishes "
         "at 20 Hz instead of 1 Hz) and one planner plugin with its Jazzy defaults.",
@@ -231,7 +242,7 @@ def write_finding(rows: Sequence[dict], name: str, problem: Any, params_file: Pa
         "", "## Rerun with AmbieGen", "",
         f"[`{name}_suite.json`]({name}_suite.json) holds the scenario as AmbieGen runs it:", "",
         "```bash", f"ambiegen rerun {suite.name} --stack planner --params {params_file.stem}={params.name} "
-        f"--config config/robot_planner.yaml --repeat {len(runs)}", "```", "",
+        f"--config {config} --repeat {len(runs)}", "```", "",
         f"Recorded with ambiegen_ros {versions.get('ambiegen_ros', '?')}, {first.get('when', '')}.",
     ]
     if picture is not None and Path(picture).exists():
